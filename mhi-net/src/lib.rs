@@ -1,0 +1,1 @@
+//! The burn networks of MHI view synthesis (not implemented yet: issue #5).

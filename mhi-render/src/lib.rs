@@ -1,0 +1,1 @@
+//! Rendering of multiple homography images (not implemented yet: issue #4).

@@ -1,1 +1,88 @@
-//! RealEstate10K camera files and frames, triplet sampling, and synthetic posed scenes (not implemented yet: issue #3).
+//! Data for MHI view synthesis: RealEstate10K camera files and frames, triplet sampling with
+//! rotation bins, and synthetic posed scenes with exact ground truth.
+//!
+//! Everything here uses plain `image` and `glam` types; there is no tensor code.
+//!
+//! # Example
+//!
+//! Generate a tiny synthetic dataset, open it as a RealEstate10K-layout dataset and draw
+//! reproducible evaluation triplets:
+//!
+//! ```
+//! use mhi_data::{Dataset, SynthConfig, TripletIndex, generate};
+//!
+//! # fn main() -> mhi_data::Result<()> {
+//! let dir = tempfile::tempdir().unwrap();
+//! let config = SynthConfig { scenes: 2, frames: 5, width: 32, height: 24, ..SynthConfig::default() };
+//! generate(&config, dir.path(), &|| {})?;
+//!
+//! let test = Dataset::open(dir.path(), "test", 3)?;
+//! assert_eq!(test.sequences.len(), 1);
+//! let index = TripletIndex::sample(&test, 4, 7);
+//! assert_eq!(index.triplets.len(), 4);
+//! let frame = mhi_data::load_frame(&test.sequences[0].frames[0], Some((16, 12)), mhi_data::Fit::Stretch)?;
+//! assert_eq!(frame.image.dimensions(), (16, 12));
+//! assert_eq!(frame.camera.intrinsics.cx, 8.0);
+//! # Ok(())
+//! # }
+//! ```
+
+mod dataset;
+mod error;
+mod re10k;
+mod synth;
+mod triplets;
+
+use std::io::Write as _;
+use std::path::Path;
+
+pub use dataset::{
+    Dataset, Fit, Frame, LoadedFrame, Sequence, Warning, load_frame, read_rgb, to_f32, to_u8,
+};
+pub use error::{Error, Result};
+pub use re10k::{COLUMNS, CameraFile, CameraRow};
+pub use synth::{
+    Hit, Scene, Surface, SynthConfig, SynthSummary, Texture, generate, load_scene, make_scene,
+};
+pub use triplets::{
+    CLIP_LEN, RotationBin, STRIDE_RANGE, Triplet, TripletIndex, TripletKind, max_rotation_deg,
+    sample_clip, sample_training_triplet,
+};
+
+/// Write `bytes` to `path` atomically: to a temporary file beside it, then renamed into place,
+/// so an interrupted write never leaves a truncated file where a good one was.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".tmp-")
+        .tempfile_in(dir)
+        .map_err(|e| Error::io(dir, e))?;
+    tmp.write_all(bytes).map_err(|e| Error::io(tmp.path(), e))?;
+    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
+    Ok(())
+}
+
+/// Encode an 8-bit RGB image as PNG (fast compression) and write it atomically.
+pub fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
+    use image::ImageEncoder as _;
+    let mut buf = Vec::new();
+    image::codecs::png::PngEncoder::new_with_quality(
+        &mut buf,
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Adaptive,
+    )
+    .write_image(
+        img.as_raw(),
+        img.width(),
+        img.height(),
+        image::ExtendedColorType::Rgb8,
+    )
+    .map_err(|source| Error::Image {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    write_atomic(path, &buf)
+}

@@ -1,0 +1,318 @@
+//! Discovery of RealEstate10K-layout datasets and loading of their frames.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use image::imageops::FilterType;
+use image::{ImageReader, Rgb32FImage, RgbImage};
+use mhi_geom::Camera;
+use serde::{Deserialize, Serialize};
+use walkdir::WalkDir;
+
+use crate::error::{Error, Result};
+use crate::re10k::{CameraFile, CameraRow};
+
+/// One frame of a sequence: its camera line and the image file that holds it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Frame {
+    /// The camera line.
+    pub row: CameraRow,
+    /// The image file.
+    pub path: PathBuf,
+}
+
+/// A sequence: the frames of one camera file that have an image on disk.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Sequence {
+    /// The sequence name (camera file stem).
+    pub name: String,
+    /// The camera file.
+    pub camera_file: PathBuf,
+    /// Frames with images, in timestamp order.
+    pub frames: Vec<Frame>,
+}
+
+/// Something the reader passed over, for the user to see.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Warning {
+    /// The file or directory concerned.
+    pub path: PathBuf,
+    /// What was passed over and why.
+    pub message: String,
+}
+
+impl std::fmt::Display for Warning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.path.display(), self.message)
+    }
+}
+
+/// A split of a dataset in RealEstate10K layout.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Dataset {
+    /// `ROOT/<split>`.
+    pub dir: PathBuf,
+    /// Usable sequences, sorted by name.
+    pub sequences: Vec<Sequence>,
+    /// Sequences skipped (no frames at all, or too few) and frames missing from kept sequences.
+    pub warnings: Vec<Warning>,
+    /// Number of sequences skipped entirely.
+    pub skipped_sequences: usize,
+    /// Number of camera lines without an image in kept sequences.
+    pub missing_frames: usize,
+}
+
+/// Image file extensions accepted for frames.
+const EXTENSIONS: [&str; 3] = ["png", "jpg", "jpeg"];
+
+impl Dataset {
+    /// Discover `root/split/*.txt` and their frames.
+    ///
+    /// Frames are `root/split/<seq>/<timestamp>.png|jpg` or `.../<seq>/<seq>_<timestamp>.jpg`.
+    /// A sequence with fewer than `min_frames` images is skipped with a warning; camera lines
+    /// without an image are dropped with a warning. A camera file that does not parse is an
+    /// error (a corrupt dataset should be fixed, not silently shrunk).
+    pub fn open(root: &Path, split: &str, min_frames: usize) -> Result<Self> {
+        let dir = root.join(split);
+        if !dir.is_dir() {
+            return Err(Error::Dataset {
+                path: dir,
+                fault: format!(
+                    "no such split directory (expected RealEstate10K layout ROOT/{split}/<seq>.txt)"
+                ),
+            });
+        }
+        let mut camera_files: Vec<PathBuf> = Vec::new();
+        for entry in WalkDir::new(&dir)
+            .min_depth(1)
+            .max_depth(1)
+            .sort_by_file_name()
+        {
+            let entry = entry.map_err(|e| Error::Dataset {
+                path: dir.clone(),
+                fault: format!("cannot list directory: {e}"),
+            })?;
+            let p = entry.path();
+            if entry.file_type().is_file() && p.extension().is_some_and(|e| e == "txt") {
+                camera_files.push(p.to_path_buf());
+            }
+        }
+        if camera_files.is_empty() {
+            return Err(Error::Dataset {
+                path: dir,
+                fault: "no camera files (*.txt) in this split".into(),
+            });
+        }
+        let mut out = Self {
+            dir: dir.clone(),
+            sequences: Vec::new(),
+            warnings: Vec::new(),
+            skipped_sequences: 0,
+            missing_frames: 0,
+        };
+        for cam_path in camera_files {
+            let name = cam_path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let file = CameraFile::read(&cam_path)?;
+            let images = list_frames(&dir.join(&name), &name)?;
+            let total = file.rows.len();
+            let frames: Vec<Frame> = file
+                .rows
+                .into_iter()
+                .filter_map(|row| {
+                    images.get(&row.timestamp).map(|p| Frame {
+                        row,
+                        path: p.clone(),
+                    })
+                })
+                .collect();
+            let missing = total - frames.len();
+            if frames.len() < min_frames.max(1) {
+                out.skipped_sequences += 1;
+                out.warnings.push(Warning {
+                    path: cam_path.clone(),
+                    message: format!(
+                        "sequence skipped: {} of {total} frames have an image in {}/ (need at least {})",
+                        frames.len(),
+                        name,
+                        min_frames.max(1)
+                    ),
+                });
+                continue;
+            }
+            if missing > 0 {
+                out.missing_frames += missing;
+                out.warnings.push(Warning {
+                    path: cam_path.clone(),
+                    message: format!(
+                        "{missing} of {total} frames have no image; they are left out"
+                    ),
+                });
+            }
+            out.sequences.push(Sequence {
+                name,
+                camera_file: cam_path,
+                frames,
+            });
+        }
+        Ok(out)
+    }
+}
+
+/// Map timestamp → image path for the frames in `seq_dir` (empty if the directory is missing).
+fn list_frames(seq_dir: &Path, seq: &str) -> Result<HashMap<u64, PathBuf>> {
+    let mut map = HashMap::new();
+    if !seq_dir.is_dir() {
+        return Ok(map);
+    }
+    for entry in WalkDir::new(seq_dir).min_depth(1).max_depth(1) {
+        let entry = entry.map_err(|e| Error::Dataset {
+            path: seq_dir.to_path_buf(),
+            fault: format!("cannot list directory: {e}"),
+        })?;
+        let p = entry.path();
+        let Some(ext) = p
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        else {
+            continue;
+        };
+        if !EXTENSIONS.contains(&ext.as_str()) {
+            continue;
+        }
+        let stem = p
+            .file_stem()
+            .map(|s| s.to_string_lossy())
+            .unwrap_or_default();
+        let ts = stem
+            .strip_prefix(seq)
+            .and_then(|s| s.strip_prefix('_'))
+            .unwrap_or(&stem);
+        if let Ok(ts) = ts.parse::<u64>() {
+            map.insert(ts, p.to_path_buf());
+        }
+    }
+    Ok(map)
+}
+
+/// How a frame is brought to the working resolution.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub enum Fit {
+    /// Resize to exactly the target size, aspect not kept (Stereo Magnification's choice).
+    #[default]
+    Stretch,
+    /// Crop the largest centred region of the target aspect, then resize.
+    CenterCrop,
+}
+
+/// A loaded frame: pixels in `[0, 1]` and the camera that follows every resize and crop.
+#[derive(Debug, Clone)]
+pub struct LoadedFrame {
+    /// Linear-in-file RGB values in `[0, 1]`.
+    pub image: Rgb32FImage,
+    /// The camera of `image`.
+    pub camera: Camera,
+}
+
+/// Decode an image file, detecting its format from its content (not its extension).
+pub fn read_rgb(path: &Path) -> Result<RgbImage> {
+    let reader = ImageReader::open(path)
+        .map_err(|e| Error::io(path, e))?
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))?;
+    let img = reader.decode().map_err(|source| Error::Image {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    Ok(img.to_rgb8())
+}
+
+/// Load a frame, optionally bringing it to `size = (width, height)` (Lanczos-3, which also
+/// low-passes when shrinking), with the intrinsics following the crop and the resize.
+pub fn load_frame(frame: &Frame, size: Option<(u32, u32)>, fit: Fit) -> Result<LoadedFrame> {
+    let rgb = read_rgb(&frame.path)?;
+    let (w, h) = rgb.dimensions();
+    let geom = |e| Error::Geometry {
+        context: format!("camera of {}", frame.path.display()),
+        source: e,
+    };
+    let camera = frame.row.camera(w, h).map_err(geom)?;
+    let Some((tw, th)) = size else {
+        return Ok(LoadedFrame {
+            image: to_f32(&rgb),
+            camera,
+        });
+    };
+    if tw == 0 || th == 0 {
+        return Err(Error::InvalidArgument(format!(
+            "target size {tw}×{th} has no pixels"
+        )));
+    }
+    let (rgb, camera) = match fit {
+        Fit::Stretch => (rgb, camera),
+        Fit::CenterCrop => {
+            // Largest centred crop with aspect tw/th.
+            let (cw, ch) = if u64::from(w) * u64::from(th) > u64::from(h) * u64::from(tw) {
+                (
+                    ((u64::from(h) * u64::from(tw)) / u64::from(th)).max(1) as u32,
+                    h,
+                )
+            } else {
+                (
+                    w,
+                    ((u64::from(w) * u64::from(th)) / u64::from(tw)).max(1) as u32,
+                )
+            };
+            let (x0, y0) = ((w - cw) / 2, (h - ch) / 2);
+            let k = camera
+                .intrinsics
+                .cropped((w, h), x0, y0, cw, ch)
+                .map_err(geom)?;
+            let cropped = image::imageops::crop_imm(&rgb, x0, y0, cw, ch).to_image();
+            let cam = Camera::new(k, camera.cam_from_world, cw, ch).map_err(geom)?;
+            (cropped, cam)
+        }
+    };
+    let (cw, ch) = rgb.dimensions();
+    let resized = if (cw, ch) == (tw, th) {
+        rgb
+    } else {
+        image::imageops::resize(&rgb, tw, th, FilterType::Lanczos3)
+    };
+    let camera = camera.resized(tw, th).map_err(geom)?;
+    Ok(LoadedFrame {
+        image: to_f32(&resized),
+        camera,
+    })
+}
+
+/// Convert 8-bit RGB to `[0, 1]` floats.
+pub fn to_f32(rgb: &RgbImage) -> Rgb32FImage {
+    let (w, h) = rgb.dimensions();
+    Rgb32FImage::from_fn(w, h, |x, y| {
+        let p = rgb.get_pixel(x, y).0;
+        image::Rgb([
+            f32::from(p[0]) / 255.0,
+            f32::from(p[1]) / 255.0,
+            f32::from(p[2]) / 255.0,
+        ])
+    })
+}
+
+/// Convert `[0, 1]` floats to 8-bit RGB (values clamped, NaN to 0).
+pub fn to_u8(img: &Rgb32FImage) -> RgbImage {
+    let (w, h) = img.dimensions();
+    let q = |v: f32| {
+        if v.is_nan() {
+            0
+        } else {
+            (v.clamp(0.0, 1.0) * 255.0).round() as u8
+        }
+    };
+    RgbImage::from_fn(w, h, |x, y| {
+        let p = img.get_pixel(x, y).0;
+        image::Rgb([q(p[0]), q(p[1]), q(p[2])])
+    })
+}

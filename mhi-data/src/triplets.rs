@@ -1,0 +1,399 @@
+//! Triplets (reference, source, target) drawn from posed clips, binned by rotation.
+
+use std::path::Path;
+
+use mhi_geom::RigidTransform;
+use rand::Rng;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::dataset::{Dataset, Sequence};
+use crate::error::{Error, Result};
+
+/// Frames per training clip (Stereo Magnification).
+pub const CLIP_LEN: usize = 10;
+/// Range of the random stride between clip frames (Stereo Magnification).
+pub const STRIDE_RANGE: std::ops::RangeInclusive<usize> = 3..=10;
+
+/// Whether the target lies between the two input views in time or beyond them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TripletKind {
+    /// The target is between the reference and the source.
+    Interpolation,
+    /// The target is outside the span of the reference and the source.
+    Extrapolation,
+}
+
+/// Rotation bins of the evaluation (largest relative rotation angle in the triplet).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub enum RotationBin {
+    /// θ ≤ 2°.
+    #[serde(rename = "0-2")]
+    UpTo2,
+    /// 2° < θ ≤ 4°.
+    #[serde(rename = "2-4")]
+    From2To4,
+    /// 4° < θ ≤ 8°.
+    #[serde(rename = "4-8")]
+    From4To8,
+    /// θ > 8°.
+    #[serde(rename = ">8")]
+    Over8,
+}
+
+impl RotationBin {
+    /// All bins, in increasing order.
+    pub const ALL: [Self; 4] = [Self::UpTo2, Self::From2To4, Self::From4To8, Self::Over8];
+
+    /// The bin of an angle in degrees.
+    pub fn of(deg: f64) -> Self {
+        if deg <= 2.0 {
+            Self::UpTo2
+        } else if deg <= 4.0 {
+            Self::From2To4
+        } else if deg <= 8.0 {
+            Self::From4To8
+        } else {
+            Self::Over8
+        }
+    }
+
+    /// Short label for tables, e.g. `"2-4°"`.
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::UpTo2 => "≤2°",
+            Self::From2To4 => "2-4°",
+            Self::From4To8 => "4-8°",
+            Self::Over8 => ">8°",
+        }
+    }
+}
+
+/// A reference view, a source view and a target view of one sequence.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Triplet {
+    /// Sequence name.
+    pub sequence: String,
+    /// Index of the reference frame in the sequence's frames (the MHI is built on its grid).
+    pub reference: usize,
+    /// Index of the second input frame.
+    pub source: usize,
+    /// Index of the frame to synthesise.
+    pub target: usize,
+    /// Interpolation or extrapolation.
+    pub kind: TripletKind,
+    /// Largest pairwise relative rotation angle among the three views, in degrees.
+    pub max_rotation_deg: f64,
+    /// The bin of `max_rotation_deg`.
+    pub bin: RotationBin,
+}
+
+/// Largest pairwise relative rotation angle of three poses, in degrees.
+pub fn max_rotation_deg(poses: [&RigidTransform; 3]) -> f64 {
+    let pair = |a: &RigidTransform, b: &RigidTransform| {
+        RigidTransform::relative(a, b).rotation_angle_deg()
+    };
+    pair(poses[0], poses[1])
+        .max(pair(poses[0], poses[2]))
+        .max(pair(poses[1], poses[2]))
+}
+
+fn make(
+    seq: &Sequence,
+    reference: usize,
+    source: usize,
+    target: usize,
+    kind: TripletKind,
+) -> Triplet {
+    let pose = |i: usize| &seq.frames[i].row.cam_from_world;
+    let max_rotation_deg = max_rotation_deg([pose(reference), pose(source), pose(target)]);
+    Triplet {
+        sequence: seq.name.clone(),
+        reference,
+        source,
+        target,
+        kind,
+        max_rotation_deg,
+        bin: RotationBin::of(max_rotation_deg),
+    }
+}
+
+/// A clip of frame indices: up to [`CLIP_LEN`] frames at a random stride in [`STRIDE_RANGE`],
+/// shrunk to fit short sequences (shorter stride first, then fewer frames), randomly reversed.
+pub fn sample_clip(n_frames: usize, rng: &mut impl Rng) -> Vec<usize> {
+    if n_frames == 0 {
+        return Vec::new();
+    }
+    let len = CLIP_LEN.min(n_frames);
+    let max_stride = if len > 1 {
+        (n_frames - 1) / (len - 1)
+    } else {
+        1
+    };
+    let stride = rng.random_range(STRIDE_RANGE).min(max_stride.max(1));
+    let span = (len - 1) * stride;
+    let start = rng.random_range(0..=(n_frames - 1 - span));
+    let mut clip: Vec<usize> = (0..len).map(|k| start + k * stride).collect();
+    if rng.random_bool(0.5) {
+        clip.reverse();
+    }
+    clip
+}
+
+/// Pick (reference, source, target) positions in a clip of `len` frames for the given kind, or
+/// `None` when the clip is too short (interpolation needs 3 frames, extrapolation 3 too).
+fn pick(len: usize, kind: TripletKind, rng: &mut impl Rng) -> Option<(usize, usize, usize)> {
+    if len < 3 {
+        return None;
+    }
+    let (a, b, t) = match kind {
+        TripletKind::Interpolation => {
+            let a = rng.random_range(0..len - 2);
+            let b = rng.random_range(a + 2..len);
+            let t = rng.random_range(a + 1..b);
+            (a, b, t)
+        }
+        TripletKind::Extrapolation => {
+            // Target at one end, both inputs on the same side of it.
+            let t_at_end = rng.random_bool(0.5);
+            let (lo, hi) = if t_at_end { (0, len - 1) } else { (1, len) };
+            let a = rng.random_range(lo..hi - 1);
+            let b = rng.random_range(a + 1..hi);
+            let t = if t_at_end {
+                rng.random_range(b + 1..len)
+            } else {
+                rng.random_range(0..a.max(1))
+            };
+            (a, b, t)
+        }
+    };
+    // Either input may be the reference.
+    Some(if rng.random_bool(0.5) {
+        (a, b, t)
+    } else {
+        (b, a, t)
+    })
+}
+
+/// One training triplet in Stereo Magnification's scheme; `kind` is drawn 50/50.
+pub fn sample_training_triplet(seq: &Sequence, rng: &mut impl Rng) -> Option<Triplet> {
+    let clip = sample_clip(seq.frames.len(), rng);
+    let kind = if rng.random_bool(0.5) {
+        TripletKind::Interpolation
+    } else {
+        TripletKind::Extrapolation
+    };
+    let (r, s, t) = pick(clip.len(), kind, rng)?;
+    Some(make(seq, clip[r], clip[s], clip[t], kind))
+}
+
+/// A saved, reproducible set of evaluation triplets.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TripletIndex {
+    /// The seed the triplets were drawn with.
+    pub seed: u64,
+    /// The triplets, half interpolation and half extrapolation.
+    pub triplets: Vec<Triplet>,
+}
+
+impl TripletIndex {
+    /// Draw `per_sequence` triplets from every sequence, deterministically for `seed`, alternating
+    /// interpolation and extrapolation so that each is half of the total (±1).
+    pub fn sample(dataset: &Dataset, per_sequence: usize, seed: u64) -> Self {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut triplets = Vec::new();
+        let mut k = 0usize;
+        for seq in &dataset.sequences {
+            for _ in 0..per_sequence {
+                let kind = if k.is_multiple_of(2) {
+                    TripletKind::Interpolation
+                } else {
+                    TripletKind::Extrapolation
+                };
+                let clip = sample_clip(seq.frames.len(), &mut rng);
+                if let Some((r, s, t)) = pick(clip.len(), kind, &mut rng) {
+                    triplets.push(make(seq, clip[r], clip[s], clip[t], kind));
+                    k += 1;
+                }
+            }
+        }
+        Self { seed, triplets }
+    }
+
+    /// Write as pretty JSON, atomically.
+    pub fn save(&self, path: &Path) -> Result<()> {
+        let text = serde_json::to_vec_pretty(self).map_err(|source| Error::Json {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        crate::write_atomic(path, &text)
+    }
+
+    /// Read from JSON.
+    pub fn load(path: &Path) -> Result<Self> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        serde_json::from_slice(&bytes).map_err(|source| Error::Json {
+            path: path.to_path_buf(),
+            source,
+        })
+    }
+
+    /// Check that every triplet refers to a sequence and frames of `dataset`.
+    pub fn validate(&self, dataset: &Dataset, index_path: &Path) -> Result<()> {
+        for (i, t) in self.triplets.iter().enumerate() {
+            let seq = dataset.sequences.iter().find(|s| s.name == t.sequence);
+            let ok = seq.is_some_and(|s| {
+                let n = s.frames.len();
+                t.reference < n && t.source < n && t.target < n
+            });
+            if !ok {
+                return Err(Error::Dataset {
+                    path: index_path.to_path_buf(),
+                    fault: format!(
+                        "triplet {i} refers to sequence {:?} frames ({}, {}, {}), which {} does not have",
+                        t.sequence,
+                        t.reference,
+                        t.source,
+                        t.target,
+                        dataset.dir.display()
+                    ),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Count of triplets per rotation bin, in bin order.
+    pub fn bin_counts(&self) -> [usize; 4] {
+        let mut c = [0; 4];
+        for t in &self.triplets {
+            c[t.bin as usize] += 1;
+        }
+        c
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataset::Frame;
+    use crate::re10k::CameraRow;
+    use glam::{DMat3, DVec3};
+
+    fn seq(n: usize, deg_per_frame: f64) -> Sequence {
+        Sequence {
+            name: "s".into(),
+            camera_file: "s.txt".into(),
+            frames: (0..n)
+                .map(|i| Frame {
+                    row: CameraRow {
+                        timestamp: i as u64,
+                        intrinsics: [0.5, 0.5, 0.5, 0.5],
+                        distortion: [0.0; 2],
+                        cam_from_world: RigidTransform::new(
+                            DMat3::from_rotation_y((i as f64 * deg_per_frame).to_radians()),
+                            DVec3::new(i as f64 * 0.1, 0.0, 0.0),
+                        )
+                        .unwrap(),
+                    },
+                    path: format!("{i}.png").into(),
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn bins() {
+        assert_eq!(RotationBin::of(0.0), RotationBin::UpTo2);
+        assert_eq!(RotationBin::of(2.0), RotationBin::UpTo2);
+        assert_eq!(RotationBin::of(2.0001), RotationBin::From2To4);
+        assert_eq!(RotationBin::of(8.0), RotationBin::From4To8);
+        assert_eq!(RotationBin::of(30.0), RotationBin::Over8);
+    }
+
+    #[test]
+    fn clips_respect_stride_and_length() {
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        for n in [1usize, 3, 8, 10, 40, 200] {
+            for _ in 0..200 {
+                let c = sample_clip(n, &mut rng);
+                assert_eq!(c.len(), CLIP_LEN.min(n));
+                assert!(c.iter().all(|&i| i < n));
+                if c.len() > 1 {
+                    let stride = c[0].abs_diff(c[1]);
+                    assert!(c.windows(2).all(|w| w[0].abs_diff(w[1]) == stride));
+                    if n >= 91 {
+                        assert!(STRIDE_RANGE.contains(&stride), "{stride}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn training_triplets_are_half_interpolation_and_correct() {
+        let s = seq(100, 0.5);
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let mut interp = 0;
+        for _ in 0..2000 {
+            let t = sample_training_triplet(&s, &mut rng).unwrap();
+            let (lo, hi) = (t.reference.min(t.source), t.reference.max(t.source));
+            assert!(t.reference != t.source && t.target != t.reference && t.target != t.source);
+            match t.kind {
+                TripletKind::Interpolation => {
+                    interp += 1;
+                    assert!(lo < t.target && t.target < hi);
+                }
+                TripletKind::Extrapolation => assert!(t.target < lo || t.target > hi),
+            }
+            // Rotation is about one axis at 0.5°/frame: the largest angle is the widest span.
+            let span = [t.reference, t.source, t.target];
+            let width = span.iter().max().unwrap() - span.iter().min().unwrap();
+            assert!((t.max_rotation_deg - width as f64 * 0.5).abs() < 1e-9);
+        }
+        assert!((900..1100).contains(&interp), "{interp}");
+    }
+
+    #[test]
+    fn eval_index_is_deterministic_balanced_and_round_trips() {
+        let ds = Dataset {
+            dir: "d".into(),
+            sequences: vec![seq(30, 1.0), {
+                let mut s = seq(12, 0.2);
+                s.name = "t".into();
+                s
+            }],
+            warnings: vec![],
+            skipped_sequences: 0,
+            missing_frames: 0,
+        };
+        let a = TripletIndex::sample(&ds, 10, 42);
+        let b = TripletIndex::sample(&ds, 10, 42);
+        assert_eq!(a, b);
+        assert_ne!(a, TripletIndex::sample(&ds, 10, 43));
+        let interp = a
+            .triplets
+            .iter()
+            .filter(|t| t.kind == TripletKind::Interpolation)
+            .count();
+        assert_eq!(a.triplets.len(), 20);
+        assert_eq!(interp, 10);
+        assert_eq!(a.bin_counts().iter().sum::<usize>(), 20);
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("index.json");
+        a.save(&p).unwrap();
+        assert_eq!(TripletIndex::load(&p).unwrap(), a);
+        a.validate(&ds, &p).unwrap();
+        let mut bad = a.clone();
+        bad.triplets[0].target = 99;
+        let err = bad.validate(&ds, &p).unwrap_err().to_string();
+        assert!(
+            err.contains("index.json") && err.contains("triplet 0"),
+            "{err}"
+        );
+        std::fs::write(&p, "{ not json").unwrap();
+        assert!(matches!(TripletIndex::load(&p), Err(Error::Json { .. })));
+    }
+}

@@ -1,0 +1,184 @@
+//! `synth` and `triplets`: making and inspecting datasets.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use clap::Args;
+use mhi_data::{Dataset, RotationBin, SynthConfig, TripletIndex, TripletKind};
+
+/// Options of `cargo xtask synth`.
+#[derive(Args, Debug)]
+pub struct SynthArgs {
+    /// Output directory; `train/` and `test/` splits are written inside it.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Number of scenes (one sequence each).
+    #[arg(long, default_value_t = 100)]
+    pub scenes: usize,
+    /// Frames per sequence.
+    #[arg(long, default_value_t = 10)]
+    pub frames: usize,
+    /// Image size as WIDTHxHEIGHT.
+    #[arg(long, default_value = "256x256", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Seed: the same seed gives the same scenes, bit for bit.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Fraction of scenes written to the test split.
+    #[arg(long, default_value_t = 0.2)]
+    pub test_fraction: f64,
+    /// Samples per pixel along each axis (anti-aliasing).
+    #[arg(long, default_value_t = 2)]
+    pub supersample: u32,
+    /// Replace an existing dataset in --out (otherwise a non-empty split is refused).
+    #[arg(long)]
+    pub overwrite: bool,
+}
+
+/// Parse `WIDTHxHEIGHT`.
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("size {s:?} must look like 256x256"))?;
+    let w: u32 = w
+        .trim()
+        .parse()
+        .map_err(|_| format!("width {w:?} is not a positive integer"))?;
+    let h: u32 = h
+        .trim()
+        .parse()
+        .map_err(|_| format!("height {h:?} is not a positive integer"))?;
+    if w == 0 || h == 0 {
+        return Err(format!("size {s:?} has no pixels"));
+    }
+    Ok((w, h))
+}
+
+fn non_empty_dir(p: &Path) -> bool {
+    std::fs::read_dir(p).is_ok_and(|mut d| d.next().is_some())
+}
+
+/// `cargo xtask synth`.
+pub fn synth(a: &SynthArgs) -> anyhow::Result<()> {
+    let config = SynthConfig {
+        scenes: a.scenes,
+        frames: a.frames,
+        width: a.size.0,
+        height: a.size.1,
+        seed: a.seed,
+        test_fraction: a.test_fraction,
+        supersample: a.supersample,
+    };
+    for split in ["train", "test"] {
+        let d = a.out.join(split);
+        if non_empty_dir(&d) && !a.overwrite {
+            bail!(
+                "{} already holds data; pass --overwrite to replace it, or choose another --out",
+                d.display()
+            );
+        }
+    }
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create output directory {}", a.out.display()))?;
+    let pb = crate::progress::bar((config.scenes * config.frames) as u64, "rendering");
+    let t0 = Instant::now();
+    let summary = mhi_data::generate(&config, &a.out, &|| pb.inc(1))
+        .with_context(|| format!("generating synthetic scenes in {}", a.out.display()))?;
+    pb.finish_and_clear();
+    let secs = t0.elapsed().as_secs_f64();
+    println!(
+        "wrote {} frames of {} scenes ({} train, {} test) at {}x{} to {} in {:.1} s ({:.1} frames/s)",
+        summary.frames,
+        config.scenes,
+        summary.train.len(),
+        summary.test.len(),
+        config.width,
+        config.height,
+        a.out.display(),
+        secs,
+        summary.frames as f64 / secs
+    );
+    Ok(())
+}
+
+/// Options of `cargo xtask triplets`.
+#[derive(Args, Debug)]
+pub struct TripletsArgs {
+    /// Dataset root in RealEstate10K layout (`ROOT/<split>/<seq>.txt` and frames).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Split to open.
+    #[arg(long, default_value = "test")]
+    pub split: String,
+    /// Triplets drawn per sequence.
+    #[arg(long, default_value_t = 10)]
+    pub per_sequence: usize,
+    /// Seed of the draw.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Write the triplets to this JSON index (refuses to replace an existing file).
+    #[arg(long)]
+    pub save: Option<PathBuf>,
+}
+
+/// `cargo xtask triplets`.
+pub fn triplets(a: &TripletsArgs) -> anyhow::Result<()> {
+    let ds = Dataset::open(&a.data, &a.split, 3)?;
+    for w in &ds.warnings {
+        eprintln!("warning: {w}");
+    }
+    let frames: usize = ds.sequences.iter().map(|s| s.frames.len()).sum();
+    println!(
+        "{}: {} sequences, {} frames; {} sequences skipped, {} frames missing",
+        ds.dir.display(),
+        ds.sequences.len(),
+        frames,
+        ds.skipped_sequences,
+        ds.missing_frames
+    );
+    if ds.sequences.is_empty() {
+        bail!(
+            "{}: no usable sequence (each needs at least 3 frames with images)",
+            ds.dir.display()
+        );
+    }
+    let first = &ds.sequences[0].frames[0];
+    let loaded = mhi_data::load_frame(first, None, mhi_data::Fit::Stretch)?;
+    let k = loaded.camera.intrinsics;
+    println!(
+        "first frame {}: {}x{}, fx {:.1} fy {:.1} cx {:.1} cy {:.1}",
+        first.path.display(),
+        loaded.image.width(),
+        loaded.image.height(),
+        k.fx,
+        k.fy,
+        k.cx,
+        k.cy
+    );
+    let index = TripletIndex::sample(&ds, a.per_sequence, a.seed);
+    let counts = index.bin_counts();
+    let interp = index
+        .triplets
+        .iter()
+        .filter(|t| t.kind == TripletKind::Interpolation)
+        .count();
+    println!(
+        "{} triplets (seed {}): {} interpolation, {} extrapolation",
+        index.triplets.len(),
+        a.seed,
+        interp,
+        index.triplets.len() - interp
+    );
+    for (bin, c) in RotationBin::ALL.iter().zip(counts) {
+        println!("  rotation {:>5}: {c}", bin.label());
+    }
+    if let Some(p) = &a.save {
+        if p.exists() {
+            bail!("{} exists; remove it or choose another path", p.display());
+        }
+        index.save(p)?;
+        println!("saved {}", p.display());
+    }
+    Ok(())
+}

@@ -55,6 +55,28 @@ pub fn plane_homography_metric(ref_from_tgt: &RigidTransform, plane: &Plane) -> 
     Ok(r + outer * (1.0 / signed_distance))
 }
 
+/// `H = K_src (R + t nᵀ / d) K_ref⁻¹`, mapping reference pixels to source pixels for points on
+/// `plane` (given in the reference frame), with `src_from_ref = (R, t)`. This is the warp of the
+/// plane-sweep volume: the source image seen on a reference-frame plane.
+///
+/// The plane is always in front of the reference camera (`d > 0`), so the only failure is a
+/// non-finite result; points behind the source camera show up as `w ≤ ε` in
+/// [`apply_homography`].
+pub fn plane_homography_from_reference(
+    k_ref: &Intrinsics,
+    k_src: &Intrinsics,
+    src_from_ref: &RigidTransform,
+    plane: &Plane,
+) -> Result<DMat3> {
+    let t = src_from_ref.translation();
+    let n = plane.normal();
+    let outer = DMat3::from_cols(t * n.x, t * n.y, t * n.z);
+    let m = src_from_ref.rotation() + outer * (1.0 / plane.d());
+    let h = k_src.to_mat3() * m * k_ref.inverse_mat3();
+    ensure_finite("homography", &h.to_cols_array())?;
+    Ok(h)
+}
+
 /// Apply a homography to a pixel position: `None` when the homogeneous coordinate `w` is not
 /// clearly positive (`w ≤ eps`), i.e. the point lies at or behind the camera; the sample is then
 /// invalid, never clamped.
@@ -232,6 +254,29 @@ mod tests {
             let back = DVec2::new(back.x / back.z, back.y / back.z);
             prop_assert!((back - u_tgt).length() < 1e-8 * (1.0 + u_tgt.length()));
         }
+    }
+
+    #[test]
+    fn from_reference_is_the_inverse_direction() {
+        // Mapping ref → src with the plane in the ref frame inverts the tgt → ref homography of
+        // the same plane when src is the target camera.
+        let ref_from_tgt = RigidTransform::new(
+            DMat3::from_rotation_x(0.1) * DMat3::from_rotation_y(-0.2),
+            DVec3::new(0.3, 0.1, -0.2),
+        )
+        .unwrap();
+        let plane = Plane::at_depth(DVec3::new(0.2, -0.3, 1.0).normalize(), 4.0).unwrap();
+        let tgt_to_ref = plane_homography(&k(), &k(), &ref_from_tgt, &plane).unwrap();
+        let ref_to_tgt =
+            plane_homography_from_reference(&k(), &k(), &ref_from_tgt.inverse(), &plane).unwrap();
+        let u = DVec2::new(77.5, 140.5);
+        let back = apply_homography(
+            &ref_to_tgt,
+            apply_homography(&tgt_to_ref, u, 1e-9).unwrap(),
+            1e-9,
+        )
+        .unwrap();
+        assert!((back - u).length() < 1e-9, "{back} vs {u}");
     }
 
     #[test]

@@ -52,7 +52,8 @@ pub use angle::{BlendHeuristic, angle_cost, angle_cost_in_target, soft_weight};
 pub use camera::Camera;
 pub use error::{Error, Result};
 pub use homography::{
-    MIN_RELATIVE_PLANE_DISTANCE, apply_homography, plane_homography, plane_homography_metric,
+    MIN_RELATIVE_PLANE_DISTANCE, apply_homography, plane_homography,
+    plane_homography_from_reference, plane_homography_metric,
 };
 pub use intrinsics::{Intrinsics, pixel_center};
 pub use plane::{NormalSet, Plane, UNIT_TOLERANCE, depths_linear_in_disparity, validate_normal};

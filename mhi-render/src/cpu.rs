@@ -1,0 +1,440 @@
+//! The fast CPU renderer: per target row, every layer is warped, sampled and composited front to
+//! back in one pass (no warped image is materialised), rows in parallel with rayon.
+
+use glam::{DMat3, DVec3};
+use image::Rgb32FImage;
+use mhi_geom::{BlendHeuristic, Camera, plane_homography};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::mhi::{LayerColor, Mhi};
+
+/// Samples whose homogeneous coordinate `w` is not above this are invalid (at or behind the
+/// camera): they contribute nothing (the peer renderer uses the same bound).
+pub const W_EPS: f32 = 1e-6;
+
+/// How the multi-normal images are combined.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Blend<'a> {
+    /// A heuristic of the angle between each normal and the target pixel's ray (paper Eq. 4).
+    Heuristic(BlendHeuristic),
+    /// Per-pixel weights on the target grid, `N × H × W` (normal-major), non-negative with a
+    /// positive sum at every pixel (they are normalised here).
+    Weights(&'a [f32]),
+}
+
+/// What may be left out of a render, and when a pixel may stop compositing.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Prune {
+    /// Skip layers whose alpha never exceeds this (0 keeps every layer).
+    pub alpha_threshold: f32,
+    /// Skip normals whose normalised blend weight never exceeds this over the target (0 keeps
+    /// every normal). The remaining weights are renormalised.
+    pub weight_threshold: f32,
+    /// Stop compositing a pixel once its remaining transmittance is below this (0 never stops).
+    pub transmittance_eps: f32,
+}
+
+impl Prune {
+    /// Render everything exactly.
+    pub const NONE: Self = Self {
+        alpha_threshold: 0.0,
+        weight_threshold: 0.0,
+        transmittance_eps: 0.0,
+    };
+    /// The default plan: layers below 1/255, normals below 1e-3 of the weight, pixels once 1/255
+    /// of the light remains. Each bound changes a pixel by at most about its own size.
+    pub const DEFAULT: Self = Self {
+        alpha_threshold: 1.0 / 255.0,
+        weight_threshold: 1e-3,
+        transmittance_eps: 1.0 / 255.0,
+    };
+}
+
+impl Default for Prune {
+    fn default() -> Self {
+        Self::NONE
+    }
+}
+
+/// Options of a render.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RenderOptions<'a> {
+    /// How normals are blended.
+    pub blend: Blend<'a>,
+    /// What may be skipped.
+    pub prune: Prune,
+    /// Also return the N multi-normal images.
+    pub keep_multi_normal: bool,
+}
+
+impl Default for RenderOptions<'_> {
+    fn default() -> Self {
+        Self {
+            blend: Blend::Heuristic(BlendHeuristic::Soft),
+            prune: Prune::NONE,
+            keep_multi_normal: false,
+        }
+    }
+}
+
+/// Counts of what a render did and skipped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct RenderStats {
+    /// N · D.
+    pub layers: usize,
+    /// Layers whose plane the target camera is on or behind (masked).
+    pub layers_invisible: usize,
+    /// Layers skipped by the alpha threshold.
+    pub layers_pruned: usize,
+    /// Normals skipped by the weight threshold.
+    pub normals_pruned: usize,
+}
+
+/// The result of a render.
+#[derive(Debug, Clone)]
+pub struct Rendered {
+    /// The blended novel view.
+    pub image: Rgb32FImage,
+    /// The multi-normal images, when asked for.
+    pub multi_normal: Vec<Rgb32FImage>,
+    /// The normalised blend weights used, `N × H × W`.
+    pub weights: Vec<f32>,
+    /// What was done.
+    pub stats: RenderStats,
+}
+
+/// Per-layer warp: the target→reference homography in f32 (row-major), or `None` when the plane
+/// is invisible from the target.
+pub(crate) fn layer_homographies(mhi: &Mhi, target: &Camera) -> Vec<Option<[f32; 9]>> {
+    let ref_from_tgt = mhi.reference().from_other(target);
+    let mut out = Vec::with_capacity(mhi.n() * mhi.d());
+    for i in 0..mhi.n() {
+        for j in 0..mhi.d() {
+            let h = plane_homography(
+                &mhi.reference().intrinsics,
+                &target.intrinsics,
+                &ref_from_tgt,
+                mhi.plane(i, j),
+            )
+            .ok();
+            out.push(h.map(|h| row_major_f32(&h)));
+        }
+    }
+    out
+}
+
+pub(crate) fn row_major_f32(h: &DMat3) -> [f32; 9] {
+    let t = h.transpose().to_cols_array(); // columns of Hᵀ are rows of H
+    t.map(|v| v as f32)
+}
+
+/// Normalised heuristic weights `N × H × W` on the target grid (f32; δ in f64 per pixel).
+pub fn heuristic_weights(mhi: &Mhi, target: &Camera, heuristic: BlendHeuristic) -> Vec<f32> {
+    let n = mhi.n();
+    let (w, h) = (target.width as usize, target.height as usize);
+    let r = mhi.reference().from_other(target).rotation();
+    // Normals in the target frame, normalised once.
+    let nt: Vec<DVec3> = mhi
+        .normals()
+        .normals()
+        .iter()
+        .map(|v| (r.transpose() * *v).normalize())
+        .collect();
+    let mut out = vec![0.0_f32; n * w * h];
+    let px = w * h;
+    let rows: Vec<Vec<f32>> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let mut row = vec![0.0_f32; n * w];
+            let mut deltas = vec![0.0_f64; n];
+            let mut wts = vec![0.0_f64; n];
+            for x in 0..w {
+                let ray = target
+                    .intrinsics
+                    .ray(mhi_geom::pixel_center(x as u32, y as u32))
+                    .normalize();
+                for (k, v) in nt.iter().enumerate() {
+                    deltas[k] = v.dot(ray).abs().min(1.0);
+                }
+                heuristic.weights_into(&deltas, &mut wts);
+                for k in 0..n {
+                    row[k * w + x] = wts[k] as f32;
+                }
+            }
+            row
+        })
+        .collect();
+    for (y, row) in rows.iter().enumerate() {
+        for k in 0..n {
+            out[k * px + y * w..k * px + (y + 1) * w].copy_from_slice(&row[k * w..(k + 1) * w]);
+        }
+    }
+    out
+}
+
+/// Validate given weights and normalise them per pixel.
+fn normalised_weights(given: &[f32], n: usize, px: usize) -> Result<Vec<f32>> {
+    if given.len() != n * px {
+        return Err(Error::InvalidWeights(format!(
+            "expected {n}×{px} weights, got {}",
+            given.len()
+        )));
+    }
+    if let Some(k) = given.iter().position(|v| !v.is_finite() || *v < 0.0) {
+        return Err(Error::InvalidWeights(format!(
+            "weight {} of normal {} at pixel {} is negative or not finite",
+            given[k],
+            k / px,
+            k % px
+        )));
+    }
+    let mut out = given.to_vec();
+    for p in 0..px {
+        let s: f32 = (0..n).map(|i| given[i * px + p]).sum();
+        if !(s > 0.0) {
+            return Err(Error::InvalidWeights(format!(
+                "the weights of pixel {p} sum to zero"
+            )));
+        }
+        for i in 0..n {
+            out[i * px + p] /= s;
+        }
+    }
+    Ok(out)
+}
+
+/// Reference colour as RGBA texels (A unused) for aligned bilinear fetches.
+fn texels(img: &Rgb32FImage) -> Vec<[f32; 4]> {
+    img.pixels()
+        .map(|p| [p.0[0], p.0[1], p.0[2], 0.0])
+        .collect()
+}
+
+/// Render the MHI from `target` (the fast path).
+///
+/// # Errors
+/// Only for invalid blend weights; degenerate geometry is masked (see [`RenderStats`]).
+pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Rendered> {
+    let (n, d) = (mhi.n(), mhi.d());
+    let (tw, th) = (target.width as usize, target.height as usize);
+    let px = tw * th;
+    let mut weights = match opts.blend {
+        Blend::Heuristic(hh) => heuristic_weights(mhi, target, hh),
+        Blend::Weights(w) => normalised_weights(w, n, px)?,
+    };
+    let mut stats = RenderStats {
+        layers: n * d,
+        ..RenderStats::default()
+    };
+    // Normals to skip: their weight never matters.
+    let mut active = vec![true; n];
+    if opts.prune.weight_threshold > 0.0 {
+        for (i, act) in active.iter_mut().enumerate() {
+            let max = weights[i * px..(i + 1) * px]
+                .iter()
+                .fold(0.0_f32, |m, v| m.max(*v));
+            if max < opts.prune.weight_threshold {
+                *act = false;
+            }
+        }
+        if active.iter().all(|a| !a) {
+            // Keep the strongest normal rather than render nothing.
+            let best = (0..n)
+                .max_by(|a, b| {
+                    let s = |i: usize| weights[i * px..(i + 1) * px].iter().sum::<f32>();
+                    s(*a).total_cmp(&s(*b))
+                })
+                .unwrap_or(0);
+            active[best] = true;
+        }
+        stats.normals_pruned = active.iter().filter(|a| !**a).count();
+        if stats.normals_pruned > 0 {
+            for p in 0..px {
+                let s: f32 = (0..n)
+                    .filter(|i| active[*i])
+                    .map(|i| weights[i * px + p])
+                    .sum();
+                for i in 0..n {
+                    weights[i * px + p] = if active[i] && s > 0.0 {
+                        weights[i * px + p] / s
+                    } else {
+                        0.0
+                    };
+                }
+            }
+        }
+    }
+    let hs = layer_homographies(mhi, target);
+    stats.layers_invisible = hs.iter().filter(|h| h.is_none()).count();
+    // Layers to composite, per normal, front (near) to back; the far layer is always kept.
+    let mut plan: Vec<Vec<(usize, [f32; 9], bool)>> = Vec::with_capacity(n);
+    for i in 0..n {
+        let mut layers = Vec::new();
+        for j in (0..d).rev() {
+            let Some(h) = hs[i * d + j] else { continue };
+            let far = j == 0;
+            if !far
+                && mhi.layer_max_alpha(i, j) <= opts.prune.alpha_threshold
+                && opts.prune.alpha_threshold > 0.0
+            {
+                stats.layers_pruned += 1;
+                continue;
+            }
+            layers.push((j, h, far));
+        }
+        plan.push(layers);
+    }
+    let (rw, rh) = (
+        mhi.reference().width as usize,
+        mhi.reference().height as usize,
+    );
+    let shared = match mhi.color() {
+        LayerColor::Shared(img) => Some(texels(img)),
+        LayerColor::PerLayer(_) => None,
+    };
+    let per_layer: Vec<Vec<[f32; 4]>> = match mhi.color() {
+        LayerColor::Shared(_) => Vec::new(),
+        LayerColor::PerLayer(v) => v.iter().map(texels).collect(),
+    };
+    let eps = opts.prune.transmittance_eps;
+    let keep = opts.keep_multi_normal;
+    // Each row: blended RGB (W·3) and, if kept, the N multi-normal rows (N·W·3).
+    let rows: Vec<(Vec<f32>, Vec<f32>)> = (0..th)
+        .into_par_iter()
+        .map(|y| {
+            let mut out = vec![0.0_f32; tw * 3];
+            let mut mni = if keep {
+                vec![0.0_f32; n * tw * 3]
+            } else {
+                Vec::new()
+            };
+            let mut c = vec![0.0_f32; tw * 3];
+            let mut t = vec![1.0_f32; tw];
+            let v = y as f32 + 0.5;
+            for i in 0..n {
+                if !active[i] {
+                    continue;
+                }
+                c.fill(0.0);
+                t.fill(1.0);
+                for &(j, h, far) in &plan[i] {
+                    let alpha = mhi.alpha_layer(i, j);
+                    let color: &[[f32; 4]] = match &shared {
+                        Some(s) => s,
+                        None => &per_layer[i * d + j],
+                    };
+                    // Row start of the homogeneous coordinates; x advances by the first column.
+                    let (bx, by, bw) = (h[1] * v + h[2], h[4] * v + h[5], h[7] * v + h[8]);
+                    for x in 0..tw {
+                        let tx = t[x];
+                        if tx <= eps && eps > 0.0 {
+                            continue;
+                        }
+                        let u = x as f32 + 0.5;
+                        let w = h[6] * u + bw;
+                        let (a, col) = if w > W_EPS {
+                            let sx = (h[0] * u + bx) / w - 0.5;
+                            let sy = (h[3] * u + by) / w - 0.5;
+                            sample(alpha, color, rw, rh, sx, sy)
+                        } else {
+                            (0.0, [0.0; 3])
+                        };
+                        let a = if far { 1.0 } else { a };
+                        let ta = tx * a;
+                        c[3 * x] += ta * col[0];
+                        c[3 * x + 1] += ta * col[1];
+                        c[3 * x + 2] += ta * col[2];
+                        t[x] = tx - ta;
+                    }
+                }
+                let wrow = &weights[i * px + y * tw..i * px + (y + 1) * tw];
+                for x in 0..tw {
+                    for k in 0..3 {
+                        out[3 * x + k] += wrow[x] * c[3 * x + k];
+                    }
+                }
+                if keep {
+                    mni[i * tw * 3..(i + 1) * tw * 3].copy_from_slice(&c);
+                }
+            }
+            (out, mni)
+        })
+        .collect();
+    let mut image = Rgb32FImage::new(target.width, target.height);
+    let mut multi_normal = if keep {
+        vec![Rgb32FImage::new(target.width, target.height); n]
+    } else {
+        Vec::new()
+    };
+    for (y, (row, mni)) in rows.iter().enumerate() {
+        let dst = &mut image.as_mut()[y * tw * 3..(y + 1) * tw * 3];
+        dst.copy_from_slice(row);
+        if keep {
+            for (i, m) in multi_normal.iter_mut().enumerate() {
+                m.as_mut()[y * tw * 3..(y + 1) * tw * 3]
+                    .copy_from_slice(&mni[i * tw * 3..(i + 1) * tw * 3]);
+            }
+        }
+    }
+    Ok(Rendered {
+        image,
+        multi_normal,
+        weights,
+        stats,
+    })
+}
+
+/// Bilinear sample of alpha and colour at pixel-index position `(sx, sy)` (pixel centres at
+/// integers), zero outside the image (PyTorch's `grid_sample`, `align_corners=False`,
+/// `padding_mode="zeros"`).
+#[inline(always)]
+fn sample(
+    alpha: &[f32],
+    color: &[[f32; 4]],
+    w: usize,
+    h: usize,
+    sx: f32,
+    sy: f32,
+) -> (f32, [f32; 3]) {
+    if !(sx > -1.0 && sy > -1.0 && sx < w as f32 && sy < h as f32) {
+        return (0.0, [0.0; 3]);
+    }
+    let (fx0, fy0) = (sx.floor(), sy.floor());
+    let (ax, ay) = (sx - fx0, sy - fy0);
+    let (x0, y0) = (fx0 as isize, fy0 as isize);
+    let wts = [
+        (1.0 - ax) * (1.0 - ay),
+        ax * (1.0 - ay),
+        (1.0 - ax) * ay,
+        ax * ay,
+    ];
+    let mut a = 0.0;
+    let mut c = [0.0_f32; 3];
+    if x0 >= 0 && y0 >= 0 && (x0 as usize) + 1 < w && (y0 as usize) + 1 < h {
+        let i = y0 as usize * w + x0 as usize;
+        let idx = [i, i + 1, i + w, i + w + 1];
+        for k in 0..4 {
+            a += wts[k] * alpha[idx[k]];
+            let t = color[idx[k]];
+            c[0] += wts[k] * t[0];
+            c[1] += wts[k] * t[1];
+            c[2] += wts[k] * t[2];
+        }
+    } else {
+        let taps = [(x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1)];
+        for k in 0..4 {
+            let (xx, yy) = taps[k];
+            if xx >= 0 && yy >= 0 && (xx as usize) < w && (yy as usize) < h {
+                let i = yy as usize * w + xx as usize;
+                a += wts[k] * alpha[i];
+                let t = color[i];
+                c[0] += wts[k] * t[0];
+                c[1] += wts[k] * t[1];
+                c[2] += wts[k] * t[2];
+            }
+        }
+    }
+    (a, c)
+}

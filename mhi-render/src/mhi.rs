@@ -1,0 +1,170 @@
+//! The Multiple Homography Image: N normals × D distances of RGBA layers on the reference grid.
+
+use image::Rgb32FImage;
+use mhi_geom::{Camera, NormalSet, Plane};
+
+use crate::error::{Error, Result};
+
+/// The colour of the layers.
+#[derive(Debug, Clone, PartialEq)]
+pub enum LayerColor {
+    /// The reference image is the colour of every layer (the paper's choice): a layer costs one
+    /// alpha map.
+    Shared(Rgb32FImage),
+    /// One colour image per layer, normal-major (`index = normal · D + depth`).
+    PerLayer(Vec<Rgb32FImage>),
+}
+
+/// An MHI: for each normal `i` and each depth `j` (far first), an alpha map on the reference
+/// image grid, plus the layers' colour.
+///
+/// The farthest layer of each normal is treated as opaque when compositing (DESIGN.md), so its
+/// stored alpha is ignored.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mhi {
+    normals: NormalSet,
+    depths: Vec<f64>,
+    planes: Vec<Plane>,
+    reference: Camera,
+    color: LayerColor,
+    alpha: Vec<f32>,
+    layer_max: Vec<f32>,
+}
+
+impl Mhi {
+    /// Build and validate an MHI.
+    ///
+    /// `depths` are the depths where each normal's planes cross the reference optical axis,
+    /// strictly decreasing (far first). `alpha` holds `N · D · H · W` values in `[0, 1]`,
+    /// normal-major then depth then row-major pixels, with `H × W` the reference camera's size.
+    pub fn new(
+        normals: NormalSet,
+        depths: Vec<f64>,
+        reference: Camera,
+        color: LayerColor,
+        alpha: Vec<f32>,
+    ) -> Result<Self> {
+        let (w, h) = (reference.width, reference.height);
+        let (n, d) = (normals.len(), depths.len());
+        if d == 0 {
+            return Err(Error::InvalidMhi("at least one depth is needed".into()));
+        }
+        if depths.iter().any(|z| !z.is_finite() || *z <= 0.0) {
+            return Err(Error::InvalidMhi(format!(
+                "depths must be finite and positive: {depths:?}"
+            )));
+        }
+        if depths.windows(2).any(|p| p[1] >= p[0]) {
+            return Err(Error::InvalidMhi(
+                "depths must decrease strictly (far first)".into(),
+            ));
+        }
+        let px = w as usize * h as usize;
+        if alpha.len() != n * d * px {
+            return Err(Error::InvalidMhi(format!(
+                "expected {n}×{d}×{h}×{w} = {} alpha values, got {}",
+                n * d * px,
+                alpha.len()
+            )));
+        }
+        if let Some(k) = alpha.iter().position(|a| !(0.0..=1.0).contains(a)) {
+            return Err(Error::InvalidMhi(format!(
+                "alpha must lie in [0, 1]; value {} at layer {}, pixel {}",
+                alpha[k],
+                k / px,
+                k % px
+            )));
+        }
+        match &color {
+            LayerColor::Shared(img) => check_size(img, w, h, "reference colour")?,
+            LayerColor::PerLayer(v) => {
+                if v.len() != n * d {
+                    return Err(Error::InvalidMhi(format!(
+                        "expected {} per-layer colour images, got {}",
+                        n * d,
+                        v.len()
+                    )));
+                }
+                for img in v {
+                    check_size(img, w, h, "layer colour")?;
+                }
+            }
+        }
+        let planes = normals.planes(&depths).map_err(|source| Error::Geometry {
+            context: "MHI planes".into(),
+            source,
+        })?;
+        let layer_max = alpha
+            .chunks(px.max(1))
+            .map(|l| l.iter().fold(0.0_f32, |m, a| m.max(*a)))
+            .collect();
+        Ok(Self {
+            normals,
+            depths,
+            planes,
+            reference,
+            color,
+            alpha,
+            layer_max,
+        })
+    }
+
+    /// The normals.
+    pub fn normals(&self) -> &NormalSet {
+        &self.normals
+    }
+    /// The depths, far first.
+    pub fn depths(&self) -> &[f64] {
+        &self.depths
+    }
+    /// Number of normals N.
+    pub fn n(&self) -> usize {
+        self.normals.len()
+    }
+    /// Number of depths D.
+    pub fn d(&self) -> usize {
+        self.depths.len()
+    }
+    /// The reference camera (the layers' grid).
+    pub fn reference(&self) -> &Camera {
+        &self.reference
+    }
+    /// The layers' colour.
+    pub fn color(&self) -> &LayerColor {
+        &self.color
+    }
+    /// All alpha values (normal-major, then depth, then row-major pixels).
+    pub fn alpha(&self) -> &[f32] {
+        &self.alpha
+    }
+    /// The plane of layer `(normal, depth)`.
+    pub fn plane(&self, normal: usize, depth: usize) -> &Plane {
+        &self.planes[normal * self.d() + depth]
+    }
+    /// The alpha map of layer `(normal, depth)`, row-major.
+    pub fn alpha_layer(&self, normal: usize, depth: usize) -> &[f32] {
+        let px = self.reference.width as usize * self.reference.height as usize;
+        let k = normal * self.d() + depth;
+        &self.alpha[k * px..(k + 1) * px]
+    }
+    /// The largest alpha of layer `(normal, depth)`.
+    pub fn layer_max_alpha(&self, normal: usize, depth: usize) -> f32 {
+        self.layer_max[normal * self.d() + depth]
+    }
+}
+
+fn check_size(img: &Rgb32FImage, w: u32, h: u32, what: &str) -> Result<()> {
+    if img.dimensions() != (w, h) {
+        return Err(Error::InvalidMhi(format!(
+            "{what} is {}×{}, the reference camera is {w}×{h}",
+            img.width(),
+            img.height()
+        )));
+    }
+    if img.as_raw().iter().any(|v| !v.is_finite()) {
+        return Err(Error::InvalidMhi(format!(
+            "{what} holds NaN or infinite values"
+        )));
+    }
+    Ok(())
+}

@@ -386,6 +386,25 @@ impl Scene {
         })
     }
 
+    /// Exact ground truth at the centre of every pixel of `camera` (row-major): the unit normal
+    /// of the surface seen, in the camera frame, and its depth (camera z). `None` where the ray
+    /// hits nothing (never in a closed scene).
+    pub fn ground_truth(&self, camera: &Camera) -> Vec<Option<(DVec3, f64)>> {
+        let world_from_cam = camera.cam_from_world.inverse();
+        let origin = world_from_cam.translation();
+        (0..camera.height)
+            .flat_map(|y| (0..camera.width).map(move |x| (x, y)))
+            .map(|(x, y)| {
+                let ray = camera.intrinsics.ray(mhi_geom::pixel_center(x, y));
+                let hit = self.trace(origin, world_from_cam.transform_vector(ray))?;
+                let n = camera
+                    .cam_from_world
+                    .transform_vector(self.surfaces[hit.surface].normal);
+                Some((n, hit.s))
+            })
+            .collect()
+    }
+
     /// The camera file of the clip (normalised intrinsics, world-to-camera poses).
     pub fn camera_file(&self) -> Result<CameraFile> {
         let rows = self

@@ -1,1 +1,37 @@
-//! Metrics and the evaluation protocol (not implemented yet: issue #6).
+//! Image-quality metrics of view synthesis: PSNR and SSIM on plain `image` types (LPIPS and the
+//! evaluation protocol are not implemented yet: issue #6).
+//!
+//! # Example
+//!
+//! ```
+//! use image::Rgb32FImage;
+//! let a = Rgb32FImage::from_fn(16, 16, |x, y| image::Rgb([x as f32 / 16.0, y as f32 / 16.0, 0.5]));
+//! let mut b = a.clone();
+//! b.get_pixel_mut(3, 4).0[0] += 0.1;
+//! let psnr = mhi_eval::psnr(&a, &b).unwrap();
+//! assert!((psnr - 10.0 * (1.0_f64 / (0.01 / (16.0 * 16.0 * 3.0))).log10()).abs() < 1e-3);
+//! assert!(mhi_eval::ssim(&a, &a).unwrap() > 0.999_999);
+//! ```
+
+mod metrics;
+
+pub use metrics::{MAX_PSNR, psnr, ssim};
+
+/// Why a metric could not be computed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Error {
+    /// The two images differ in size.
+    #[error("images differ in size: {a:?} vs {b:?}")]
+    SizeMismatch {
+        /// Size of the first image.
+        a: (u32, u32),
+        /// Size of the second image.
+        b: (u32, u32),
+    },
+    /// An image too small or holding NaN.
+    #[error("invalid image: {0}")]
+    InvalidImage(String),
+}
+
+/// Result of a metric.
+pub type Result<T> = std::result::Result<T, Error>;

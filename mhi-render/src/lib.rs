@@ -35,10 +35,16 @@
 mod cpu;
 mod error;
 mod mhi;
+mod oracle;
 pub mod reference;
+mod sweep;
 
 pub use cpu::{
     Blend, Prune, RenderOptions, RenderStats, Rendered, W_EPS, heuristic_weights, render,
 };
 pub use error::{Error, Result};
 pub use mhi::{LayerColor, Mhi};
+pub use oracle::{PixelTruth, oracle_alpha, oracle_weights};
+pub use sweep::{
+    PlaneSweepVolume, SweepConfig, alphas_from_probabilities, plane_sweep_volume, sweep_mhi,
+};

@@ -1,0 +1,310 @@
+//! The plane-sweep volume (the source image seen on every plane from the reference view) and the
+//! training-free "sweep" MHI built from its photo-consistency.
+
+use image::Rgb32FImage;
+use mhi_geom::{
+    Camera, NormalSet, apply_homography, pixel_center, plane_homography_from_reference,
+};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::cpu::W_EPS;
+use crate::error::{Error, Result};
+use crate::mhi::{LayerColor, Mhi};
+
+/// The source image warped onto each (normal, depth) plane into the reference view.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlaneSweepVolume {
+    /// Number of normals.
+    pub n: usize,
+    /// Number of depths.
+    pub d: usize,
+    /// Reference width.
+    pub width: u32,
+    /// Reference height.
+    pub height: u32,
+    /// RGB, `[n][d][y][x][3]`; zero where invalid.
+    pub rgb: Vec<f32>,
+    /// 1 where the sample lies inside the source image and in front of the source camera.
+    pub valid: Vec<f32>,
+}
+
+impl PlaneSweepVolume {
+    /// The RGB slice of plane `(i, j)`.
+    pub fn plane_rgb(&self, i: usize, j: usize) -> &[f32] {
+        let px = self.width as usize * self.height as usize;
+        let k = i * self.d + j;
+        &self.rgb[k * px * 3..(k + 1) * px * 3]
+    }
+    /// The validity mask of plane `(i, j)`.
+    pub fn plane_valid(&self, i: usize, j: usize) -> &[f32] {
+        let px = self.width as usize * self.height as usize;
+        let k = i * self.d + j;
+        &self.valid[k * px..(k + 1) * px]
+    }
+}
+
+/// Build the plane-sweep volume of `source` on the planes of `normals × depths` (far first) in
+/// the frame of `reference`.
+pub fn plane_sweep_volume(
+    normals: &NormalSet,
+    depths: &[f64],
+    reference: &Camera,
+    source_image: &Rgb32FImage,
+    source: &Camera,
+) -> Result<PlaneSweepVolume> {
+    if source_image.dimensions() != (source.width, source.height) {
+        return Err(Error::InvalidInput(format!(
+            "source image is {}×{}, its camera {}×{}",
+            source_image.width(),
+            source_image.height(),
+            source.width,
+            source.height
+        )));
+    }
+    let planes = normals.planes(depths).map_err(|source| Error::Geometry {
+        context: "sweep planes".into(),
+        source,
+    })?;
+    let src_from_ref = source.from_other(reference);
+    let (w, h) = (reference.width as usize, reference.height as usize);
+    let (sw, sh) = (source.width as usize, source.height as usize);
+    let px = w * h;
+    let src = source_image.as_raw();
+    let per_plane: Vec<(Vec<f32>, Vec<f32>)> = planes
+        .par_iter()
+        .map(|plane| {
+            let mut rgb = vec![0.0_f32; px * 3];
+            let mut valid = vec![0.0_f32; px];
+            let Ok(hm) = plane_homography_from_reference(
+                &reference.intrinsics,
+                &source.intrinsics,
+                &src_from_ref,
+                plane,
+            ) else {
+                return (rgb, valid);
+            };
+            for y in 0..h {
+                for x in 0..w {
+                    let Some(p) =
+                        apply_homography(&hm, pixel_center(x as u32, y as u32), f64::from(W_EPS))
+                    else {
+                        continue;
+                    };
+                    let (sx, sy) = (p.x - 0.5, p.y - 0.5);
+                    if !(sx >= 0.0 && sy >= 0.0 && sx <= (sw - 1) as f64 && sy <= (sh - 1) as f64) {
+                        continue;
+                    }
+                    let (x0, y0) = (
+                        (sx.floor() as usize).min(sw.saturating_sub(2)),
+                        (sy.floor() as usize).min(sh.saturating_sub(2)),
+                    );
+                    let (ax, ay) = ((sx - x0 as f64) as f32, (sy - y0 as f64) as f32);
+                    let x1 = (x0 + 1).min(sw - 1);
+                    let y1 = (y0 + 1).min(sh - 1);
+                    let at = |xx: usize, yy: usize, k: usize| src[(yy * sw + xx) * 3 + k];
+                    for k in 0..3 {
+                        let top = at(x0, y0, k) * (1.0 - ax) + at(x1, y0, k) * ax;
+                        let bot = at(x0, y1, k) * (1.0 - ax) + at(x1, y1, k) * ax;
+                        rgb[(y * w + x) * 3 + k] = top * (1.0 - ay) + bot * ay;
+                    }
+                    valid[y * w + x] = 1.0;
+                }
+            }
+            (rgb, valid)
+        })
+        .collect();
+    let mut rgb = Vec::with_capacity(planes.len() * px * 3);
+    let mut valid = Vec::with_capacity(planes.len() * px);
+    for (r, v) in per_plane {
+        rgb.extend(r);
+        valid.extend(v);
+    }
+    Ok(PlaneSweepVolume {
+        n: normals.len(),
+        d: depths.len(),
+        width: reference.width,
+        height: reference.height,
+        rgb,
+        valid,
+    })
+}
+
+/// Parameters of the training-free sweep MHI.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SweepConfig {
+    /// Radius of the box window the photo-consistency cost is averaged over (2 → 5 × 5).
+    pub window_radius: u32,
+    /// Softmax temperature of the winner-take-all over depths, in units of mean absolute colour
+    /// difference.
+    pub temperature: f32,
+    /// Cost of a plane where the source does not see the pixel.
+    pub invalid_cost: f32,
+}
+
+impl Default for SweepConfig {
+    fn default() -> Self {
+        Self {
+            window_radius: 2,
+            temperature: 0.03,
+            invalid_cost: 0.25,
+        }
+    }
+}
+
+/// Mean absolute difference box-filtered with radius `r` (integral image, clamped borders).
+fn box_filter(cost: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
+    let mut integral = vec![0.0_f64; (w + 1) * (h + 1)];
+    for y in 0..h {
+        let mut row = 0.0;
+        for x in 0..w {
+            row += f64::from(cost[y * w + x]);
+            integral[(y + 1) * (w + 1) + x + 1] = integral[y * (w + 1) + x + 1] + row;
+        }
+    }
+    let mut out = vec![0.0; w * h];
+    for y in 0..h {
+        let (y0, y1) = (y.saturating_sub(r), (y + r + 1).min(h));
+        for x in 0..w {
+            let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
+            let s = integral[y1 * (w + 1) + x1]
+                - integral[y0 * (w + 1) + x1]
+                - integral[y1 * (w + 1) + x0]
+                + integral[y0 * (w + 1) + x0];
+            out[y * w + x] = (s / ((y1 - y0) * (x1 - x0)) as f64) as f32;
+        }
+    }
+    out
+}
+
+/// Turn per-depth probabilities (far first, summing to 1 at each pixel) into front-to-back
+/// alphas: the nearest layer takes its probability, each farther layer the share of what is
+/// left, the farthest everything that remains. Compositing these alphas gives back the
+/// probabilities as the layers' visible weights.
+pub fn alphas_from_probabilities(prob: &[f32], d: usize, px: usize, alpha: &mut [f32]) {
+    for p in 0..px {
+        let mut remaining = 1.0_f32;
+        for j in (0..d).rev() {
+            let pj = prob[j * px + p];
+            let a = if j == 0 || remaining <= 1e-6 {
+                1.0
+            } else {
+                (pj / remaining).clamp(0.0, 1.0)
+            };
+            alpha[j * px + p] = a;
+            remaining = (remaining - pj).max(0.0);
+        }
+    }
+}
+
+/// The training-free MHI: for each normal, photo-consistency of the plane-sweep volume against
+/// the reference image, a soft winner-take-all over depths, turned into front-to-back alphas.
+/// The reference image is the layers' colour.
+pub fn sweep_mhi(
+    normals: &NormalSet,
+    depths: &[f64],
+    reference: &Camera,
+    reference_image: &Rgb32FImage,
+    source: &Camera,
+    source_image: &Rgb32FImage,
+    cfg: &SweepConfig,
+) -> Result<Mhi> {
+    if reference_image.dimensions() != (reference.width, reference.height) {
+        return Err(Error::InvalidInput(
+            "reference image and camera sizes differ".into(),
+        ));
+    }
+    if !(cfg.temperature > 0.0) {
+        return Err(Error::InvalidInput(format!(
+            "sweep temperature must be > 0, got {}",
+            cfg.temperature
+        )));
+    }
+    let psv = plane_sweep_volume(normals, depths, reference, source_image, source)?;
+    let (w, h) = (reference.width as usize, reference.height as usize);
+    let px = w * h;
+    let (n, d) = (normals.len(), depths.len());
+    let refp = reference_image.as_raw();
+    let mut alpha = vec![0.0_f32; n * d * px];
+    alpha
+        .par_chunks_mut(d * px)
+        .enumerate()
+        .for_each(|(i, out)| {
+            let costs: Vec<Vec<f32>> = (0..d)
+                .map(|j| {
+                    let rgb = psv.plane_rgb(i, j);
+                    let valid = psv.plane_valid(i, j);
+                    let raw: Vec<f32> = (0..px)
+                        .map(|p| {
+                            if valid[p] > 0.0 {
+                                (0..3)
+                                    .map(|k| (rgb[3 * p + k] - refp[3 * p + k]).abs())
+                                    .sum::<f32>()
+                                    / 3.0
+                            } else {
+                                cfg.invalid_cost
+                            }
+                        })
+                        .collect();
+                    box_filter(&raw, w, h, cfg.window_radius as usize)
+                })
+                .collect();
+            // Softmax over depths of −cost / τ (max subtracted).
+            let mut prob = vec![0.0_f32; d * px];
+            for p in 0..px {
+                let m = (0..d)
+                    .map(|j| -costs[j][p] / cfg.temperature)
+                    .fold(f32::NEG_INFINITY, f32::max);
+                let mut s = 0.0;
+                for j in 0..d {
+                    let e = (-costs[j][p] / cfg.temperature - m).exp();
+                    prob[j * px + p] = e;
+                    s += e;
+                }
+                for j in 0..d {
+                    prob[j * px + p] /= s;
+                }
+            }
+            alphas_from_probabilities(&prob, d, px, out);
+        });
+    Mhi::new(
+        normals.clone(),
+        depths.to_vec(),
+        *reference,
+        LayerColor::Shared(reference_image.clone()),
+        alpha,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn alphas_reproduce_the_probabilities_when_composited() {
+        let (d, px) = (5, 1);
+        let prob = [0.1_f32, 0.05, 0.5, 0.15, 0.2]; // far first
+        let mut alpha = [0.0_f32; 5];
+        alphas_from_probabilities(&prob, d, px, &mut alpha);
+        // Front to back: visible weight of j = α_j Π_{nearer} (1 − α).
+        let mut t = 1.0;
+        for j in (0..d).rev() {
+            let vis = alpha[j] * t;
+            assert!(
+                (vis - prob[j]).abs() < 1e-6,
+                "layer {j}: {vis} vs {}",
+                prob[j]
+            );
+            t *= 1.0 - alpha[j];
+        }
+        assert!(alpha.iter().all(|a| (0.0..=1.0).contains(a)));
+    }
+
+    #[test]
+    fn box_filter_averages() {
+        let c: Vec<f32> = (0..12).map(|v| v as f32).collect();
+        let f = box_filter(&c, 4, 3, 1);
+        assert!((f[5] - (0.0 + 1.0 + 2.0 + 4.0 + 5.0 + 6.0 + 8.0 + 9.0 + 10.0) / 9.0).abs() < 1e-6);
+        assert!((f[0] - (0.0 + 1.0 + 4.0 + 5.0) / 4.0).abs() < 1e-6);
+    }
+}

@@ -15,7 +15,7 @@
 
 mod metrics;
 
-pub use metrics::{MAX_PSNR, psnr, ssim};
+pub use metrics::{MAX_PSNR, psnr, psnr_masked, ssim};
 
 /// Why a metric could not be computed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

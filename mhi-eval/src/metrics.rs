@@ -42,6 +42,29 @@ pub fn psnr(a: &Rgb32FImage, b: &Rgb32FImage) -> Result<f64> {
     Ok((10.0 * (1.0 / mse.max(1e-10)).log10()).min(MAX_PSNR))
 }
 
+/// PSNR over the pixels where `mask` is true (row-major, one flag per pixel); `None` when the
+/// mask selects no pixel.
+pub fn psnr_masked(a: &Rgb32FImage, b: &Rgb32FImage, mask: &[bool]) -> Result<Option<f64>> {
+    check(a, b)?;
+    if mask.len() != (a.width() * a.height()) as usize {
+        return Err(Error::InvalidImage(format!(
+            "mask has {} flags for {} pixels",
+            mask.len(),
+            a.width() * a.height()
+        )));
+    }
+    let (mut sum, mut n) = (0.0, 0usize);
+    for (p, (x, y)) in a.as_raw().chunks(3).zip(b.as_raw().chunks(3)).enumerate() {
+        if mask[p] {
+            sum += (0..3)
+                .map(|k| (clip(x[k]) - clip(y[k])).powi(2))
+                .sum::<f64>();
+            n += 3;
+        }
+    }
+    Ok((n > 0).then(|| (10.0 * (1.0 / (sum / n as f64).max(1e-10)).log10()).min(MAX_PSNR)))
+}
+
 /// Normalised 1-D Gaussian of σ = 1.5 truncated at 3.5σ (radius 5: an 11 × 11 window), as
 /// `scipy.ndimage.gaussian_filter` builds it.
 fn gaussian_kernel() -> [f64; 11] {

@@ -44,3 +44,26 @@ fn identical_images_and_bad_input() {
         Err(mhi_eval::Error::SizeMismatch { .. })
     ));
 }
+
+#[test]
+fn masked_psnr_counts_only_masked_pixels() {
+    let (a, b) = (load("a.png"), load("b.png"));
+    let n = (a.width() * a.height()) as usize;
+    let all = mhi_eval::psnr_masked(&a, &b, &vec![true; n])
+        .unwrap()
+        .unwrap();
+    assert!((all - mhi_eval::psnr(&a, &b).unwrap()).abs() < 1e-9);
+    assert_eq!(
+        mhi_eval::psnr_masked(&a, &b, &vec![false; n]).unwrap(),
+        None
+    );
+    // Pixels that differ are excluded: masking to equal pixels gives the cap.
+    let mask: Vec<bool> = a.pixels().zip(b.pixels()).map(|(p, q)| p == q).collect();
+    if mask.iter().any(|m| *m) {
+        assert_eq!(
+            mhi_eval::psnr_masked(&a, &b, &mask).unwrap(),
+            Some(mhi_eval::MAX_PSNR)
+        );
+    }
+    assert!(mhi_eval::psnr_masked(&a, &b, &[true]).is_err());
+}

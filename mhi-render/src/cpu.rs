@@ -312,6 +312,7 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
             };
             let mut c = vec![0.0_f32; tw * 3];
             let mut t = vec![1.0_f32; tw];
+            let (mut sxs, mut sys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
             let v = y as f32 + 0.5;
             for i in 0..n {
                 if !active[i] {
@@ -325,28 +326,37 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
                         Some(s) => s,
                         None => &per_layer[i * d + j],
                     };
-                    // Row start of the homogeneous coordinates; x advances by the first column.
+                    // Pass 1 (vectorisable): sample positions of the whole row; invalid samples
+                    // (w ≤ ε) are sent outside the image, where they read zero.
                     let (bx, by, bw) = (h[1] * v + h[2], h[4] * v + h[5], h[7] * v + h[8]);
-                    for x in 0..tw {
-                        let tx = t[x];
-                        if tx <= eps && eps > 0.0 {
-                            continue;
-                        }
+                    for (x, (px_, py_)) in sxs.iter_mut().zip(sys.iter_mut()).enumerate() {
                         let u = x as f32 + 0.5;
                         let w = h[6] * u + bw;
-                        let (a, col) = if w > W_EPS {
-                            let sx = (h[0] * u + bx) / w - 0.5;
-                            let sy = (h[3] * u + by) / w - 0.5;
-                            sample(alpha, color, rw, rh, sx, sy)
+                        let ok = w > W_EPS;
+                        let inv = 1.0 / if ok { w } else { 1.0 };
+                        *px_ = if ok {
+                            (h[0] * u + bx) * inv - 0.5
                         } else {
-                            (0.0, [0.0; 3])
+                            -2.0
                         };
+                        *py_ = if ok {
+                            (h[3] * u + by) * inv - 0.5
+                        } else {
+                            -2.0
+                        };
+                    }
+                    // Pass 2: bilinear fetches and front-to-back compositing.
+                    for (x, (tx, cx)) in t.iter_mut().zip(c.chunks_exact_mut(3)).enumerate() {
+                        if *tx <= eps && eps > 0.0 {
+                            continue;
+                        }
+                        let (a, col) = sample(alpha, color, rw, rh, sxs[x], sys[x]);
                         let a = if far { 1.0 } else { a };
-                        let ta = tx * a;
-                        c[3 * x] += ta * col[0];
-                        c[3 * x + 1] += ta * col[1];
-                        c[3 * x + 2] += ta * col[2];
-                        t[x] = tx - ta;
+                        let ta = *tx * a;
+                        cx[0] += ta * col[0];
+                        cx[1] += ta * col[1];
+                        cx[2] += ta * col[2];
+                        *tx -= ta;
                     }
                 }
                 let wrow = &weights[i * px + y * tw..i * px + (y + 1) * tw];
@@ -401,9 +411,11 @@ fn sample(
     if !(sx > -1.0 && sy > -1.0 && sx < w as f32 && sy < h as f32) {
         return (0.0, [0.0; 3]);
     }
-    let (fx0, fy0) = (sx.floor(), sy.floor());
-    let (ax, ay) = (sx - fx0, sy - fy0);
-    let (x0, y0) = (fx0 as isize, fy0 as isize);
+    // floor() without a libm call (the baseline x86-64 target has no SSE4.1 rounding): the
+    // shifted value is positive, so truncation is the floor.
+    let x0 = (sx + 1.0) as isize - 1;
+    let y0 = (sy + 1.0) as isize - 1;
+    let (ax, ay) = (sx - x0 as f32, sy - y0 as f32);
     let wts = [
         (1.0 - ax) * (1.0 - ay),
         ax * (1.0 - ay),
@@ -414,13 +426,14 @@ fn sample(
     let mut c = [0.0_f32; 3];
     if x0 >= 0 && y0 >= 0 && (x0 as usize) + 1 < w && (y0 as usize) + 1 < h {
         let i = y0 as usize * w + x0 as usize;
-        let idx = [i, i + 1, i + w, i + w + 1];
-        for k in 0..4 {
-            a += wts[k] * alpha[idx[k]];
-            let t = color[idx[k]];
-            c[0] += wts[k] * t[0];
-            c[1] += wts[k] * t[1];
-            c[2] += wts[k] * t[2];
+        let (a_top, a_bot) = (&alpha[i..i + 2], &alpha[i + w..i + w + 2]);
+        let (c_top, c_bot) = (&color[i..i + 2], &color[i + w..i + w + 2]);
+        a = wts[0] * a_top[0] + wts[1] * a_top[1] + wts[2] * a_bot[0] + wts[3] * a_bot[1];
+        for k in 0..3 {
+            c[k] = wts[0] * c_top[0][k]
+                + wts[1] * c_top[1][k]
+                + wts[2] * c_bot[0][k]
+                + wts[3] * c_bot[1][k];
         }
     } else {
         let taps = [(x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1)];

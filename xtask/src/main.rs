@@ -1,6 +1,8 @@
 //! `cargo xtask`: the project's command line. Each task lives in its own module.
 
+mod bench;
 mod data;
+mod experiments;
 mod progress;
 
 use clap::Parser;
@@ -17,12 +19,24 @@ enum Task {
     /// Open a dataset in RealEstate10K layout, report its sequences and sample evaluation
     /// triplets binned by rotation (optionally saving them as a JSON index).
     Triplets(data::TripletsArgs),
+    /// Oracle experiment on synthetic scenes: MHIs and MPIs built from the exact geometry,
+    /// rendered into target views; PSNR per rotation bin, and pruned against full rendering.
+    Oracle(experiments::OracleArgs),
+    /// Training-free MHI from two posed photos (plane-sweep photo-consistency), rendered into a
+    /// third view and compared with the real photo and with the nearest input view.
+    Sweep(experiments::SweepArgs),
+    /// Time one novel view of an N x D MHI against the PyTorch peer renderer (same machine, same
+    /// run, same thread count) and against the memory-bandwidth floor.
+    Bench(bench::BenchArgs),
 }
 
 fn main() {
     let result = match Task::parse() {
         Task::Synth(a) => data::synth(&a),
         Task::Triplets(a) => data::triplets(&a),
+        Task::Oracle(a) => experiments::oracle(&a),
+        Task::Sweep(a) => experiments::sweep(&a),
+        Task::Bench(a) => bench::bench(&a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

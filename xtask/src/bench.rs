@@ -1,0 +1,214 @@
+//! `cargo xtask bench`: one novel view of an N × D MHI, timed against the PyTorch peer renderer
+//! in the same run with the same thread count, plus the memory-bandwidth floor.
+
+use std::path::PathBuf;
+use std::process::Command;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use clap::Args;
+use glam::{DMat3, DVec3};
+use image::Rgb32FImage;
+use mhi_geom::{
+    BlendHeuristic, Camera, Intrinsics, NormalSet, RigidTransform, depths_linear_in_disparity,
+};
+use mhi_render::{Blend, LayerColor, Mhi, Prune, RenderOptions, render};
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+
+/// Options of `cargo xtask bench`.
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Path of the PyTorch peer renderer (e.g. ../shared/peer/torch_render.py); without it only
+    /// this renderer is timed.
+    #[arg(long)]
+    pub peer: Option<PathBuf>,
+    /// Python interpreter for the peer.
+    #[arg(long, default_value = "python3")]
+    pub python: String,
+    /// Threads for both renderers.
+    #[arg(long, default_value_t = 2)]
+    pub threads: usize,
+    /// Number of normals (1, 2, 3 or 5).
+    #[arg(long, default_value_t = 5)]
+    pub normals: usize,
+    /// Planes per normal.
+    #[arg(long, default_value_t = 32)]
+    pub planes: usize,
+    /// Image side in pixels (square).
+    #[arg(long, default_value_t = 256)]
+    pub size: u32,
+    /// Timed runs (the median is reported).
+    #[arg(long, default_value_t = 10)]
+    pub runs: usize,
+    /// Also write {"render_ms", "torch_ms", "ratio", ...} to this JSON file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+fn median_ms(runs: usize, mut f: impl FnMut()) -> f64 {
+    f(); // warm-up
+    let mut t: Vec<f64> = (0..runs.max(1))
+        .map(|_| {
+            let t0 = Instant::now();
+            f();
+            t0.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    t.sort_by(f64::total_cmp);
+    t[t.len() / 2]
+}
+
+/// The peer's scene: K = [[W/2, 0, W/2], [0, W/2, H/2]], ref_from_tgt = (rot((0.2, 1, 0.1), 4°),
+/// (0.08, −0.02, 0.05)), uniform random alphas and colours.
+fn scene(n: usize, d: usize, size: u32, per_layer: bool) -> anyhow::Result<(Mhi, Camera)> {
+    let s = f64::from(size);
+    let k = Intrinsics::new(0.5 * s, 0.5 * s, 0.5 * s, 0.5 * s)?;
+    let reference = Camera::new(k, RigidTransform::IDENTITY, size, size)?;
+    let ref_from_tgt = RigidTransform::new(
+        DMat3::from_axis_angle(DVec3::new(0.2, 1.0, 0.1).normalize(), 4f64.to_radians()),
+        DVec3::new(0.08, -0.02, 0.05),
+    )?;
+    let target = Camera::new(k, ref_from_tgt.inverse(), size, size)?;
+    let normals = if n == 5 {
+        NormalSet::paper()
+    } else {
+        NormalSet::paper_subset(n)?
+    };
+    let depths = depths_linear_in_disparity(1.0, 100.0, d)?;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+    let mut img = || {
+        Rgb32FImage::from_fn(size, size, |_, _| {
+            image::Rgb([rng.random(), rng.random(), rng.random()])
+        })
+    };
+    let color = if per_layer {
+        LayerColor::PerLayer((0..n * d).map(|_| img()).collect())
+    } else {
+        LayerColor::Shared(img())
+    };
+    let alpha = (0..n * d * (size * size) as usize)
+        .map(|_| rng.random::<f32>())
+        .collect();
+    Ok((Mhi::new(normals, depths, reference, color, alpha)?, target))
+}
+
+/// Read bandwidth in bytes/s: a parallel sum over 512 MiB, best of three.
+fn read_bandwidth() -> f64 {
+    let v = vec![1.0_f32; 128 << 20];
+    let mut best = f64::INFINITY;
+    for _ in 0..3 {
+        let t0 = Instant::now();
+        let s: f32 = v.par_chunks(1 << 16).map(|c| c.iter().sum::<f32>()).sum();
+        std::hint::black_box(s);
+        best = best.min(t0.elapsed().as_secs_f64());
+    }
+    (v.len() * 4) as f64 / best
+}
+
+/// `cargo xtask bench`.
+pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads)
+        .build()?;
+    let (n, d, size) = (a.normals, a.planes, a.size);
+    let (mhi, target) = scene(n, d, size, false)?;
+    let soft = RenderOptions {
+        blend: Blend::Heuristic(BlendHeuristic::Soft),
+        ..Default::default()
+    };
+    let pruned_opts = RenderOptions {
+        prune: Prune::DEFAULT,
+        ..soft
+    };
+    let (render_ms, pruned_ms, bw) = pool.install(|| -> anyhow::Result<_> {
+        let full = median_ms(a.runs, || {
+            std::hint::black_box(render(&mhi, &target, &soft).expect("valid bench scene"));
+        });
+        let pruned = median_ms(a.runs, || {
+            std::hint::black_box(render(&mhi, &target, &pruned_opts).expect("valid bench scene"));
+        });
+        Ok((full, pruned, read_bandwidth()))
+    })?;
+    // Per-layer colour (the peer's layout): every layer is a full RGBA image.
+    let (mhi_pl, _) = scene(n, d, size, true)?;
+    let per_layer_ms = pool.install(|| {
+        median_ms(a.runs, || {
+            std::hint::black_box(render(&mhi_pl, &target, &soft).expect("valid bench scene"));
+        })
+    });
+    drop(mhi_pl);
+    let px = f64::from(size) * f64::from(size);
+    let bytes = (n * d) as f64 * px * 4.0 + px * 3.0 * 4.0;
+    let floor_ms = bytes / bw * 1e3;
+    println!(
+        "MHI N={n} D={d} at {size}x{size}, {} threads, median of {} runs:",
+        a.threads, a.runs
+    );
+    println!("  this renderer (shared colour, soft blend): {render_ms:8.1} ms");
+    println!("  with the default render plan (pruning):    {pruned_ms:8.1} ms");
+    println!("  per-layer colour (the peer's layout):      {per_layer_ms:8.1} ms");
+    println!(
+        "  memory floor: {:.1} MB read once at {:.1} GB/s = {floor_ms:.1} ms ({:.1}x above it)",
+        bytes / 1e6,
+        bw / 1e9,
+        render_ms / floor_ms
+    );
+    let mut torch_ms = None;
+    if let Some(peer) = &a.peer {
+        if !peer.is_file() {
+            bail!("peer renderer {} not found", peer.display());
+        }
+        let out = Command::new(&a.python)
+            .arg(peer)
+            .args([
+                "--n",
+                &n.to_string(),
+                "--d",
+                &d.to_string(),
+                "--size",
+                &size.to_string(),
+                "--threads",
+                &a.threads.to_string(),
+                "--runs",
+                &a.runs.to_string(),
+            ])
+            .output()
+            .with_context(|| format!("cannot run {} {}", a.python, peer.display()))?;
+        if !out.status.success() {
+            bail!(
+                "peer renderer failed ({}): {}",
+                out.status,
+                String::from_utf8_lossy(&out.stderr).trim()
+            );
+        }
+        let text = String::from_utf8_lossy(&out.stdout);
+        let line = text
+            .lines()
+            .rev()
+            .find(|l| l.trim_start().starts_with('{'))
+            .context("peer printed no JSON line")?;
+        let v: serde_json::Value =
+            serde_json::from_str(line).with_context(|| format!("peer JSON {line:?}"))?;
+        let ms = v["median_ms"]
+            .as_f64()
+            .context("peer JSON lacks median_ms")?;
+        println!(
+            "  PyTorch peer ({}):            {ms:8.1} ms  → ratio {:.1}x",
+            v["torch"].as_str().unwrap_or("?"),
+            ms / render_ms
+        );
+        torch_ms = Some(ms);
+    }
+    if let Some(p) = &a.json {
+        let v = serde_json::json!({
+            "normals": n, "planes": d, "size": size, "threads": a.threads, "runs": a.runs,
+            "render_ms": render_ms, "pruned_ms": pruned_ms, "per_layer_color_ms": per_layer_ms,
+            "torch_ms": torch_ms, "ratio": torch_ms.map(|t| t / render_ms),
+            "floor_bytes": bytes, "bandwidth_gbs": bw / 1e9, "floor_ms": floor_ms,
+        });
+        mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
+        println!("wrote {}", p.display());
+    }
+    Ok(())
+}

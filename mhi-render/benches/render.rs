@@ -48,7 +48,7 @@ fn scene(n: usize, d: usize) -> (Mhi, Camera) {
 }
 
 #[divan::bench(args = [(1, 32), (5, 32)], sample_count = 10)]
-fn full(bencher: divan::Bencher, (n, d): (usize, usize)) {
+fn full(bencher: divan::Bencher<'_, '_>, (n, d): (usize, usize)) {
     let (mhi, target) = scene(n, d);
     let opts = RenderOptions {
         blend: Blend::Heuristic(BlendHeuristic::Soft),
@@ -58,7 +58,7 @@ fn full(bencher: divan::Bencher, (n, d): (usize, usize)) {
 }
 
 #[divan::bench(args = [(5, 32)], sample_count = 10)]
-fn pruned(bencher: divan::Bencher, (n, d): (usize, usize)) {
+fn pruned(bencher: divan::Bencher<'_, '_>, (n, d): (usize, usize)) {
     let (mhi, target) = scene(n, d);
     let opts = RenderOptions {
         blend: Blend::Heuristic(BlendHeuristic::Soft),

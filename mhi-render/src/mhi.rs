@@ -153,6 +153,38 @@ impl Mhi {
     }
 }
 
+impl Mhi {
+    /// The expected disparity (1 / depth) seen from the reference camera through normal `i`'s
+    /// layers: each layer's visible weight `α_j Π_{nearer} (1 − α)` times the disparity where its
+    /// plane meets the pixel's ray. Rays that miss a plane in front count it at disparity 0.
+    pub fn expected_disparity(&self, normal: usize) -> Vec<f32> {
+        let (w, h) = (self.reference.width, self.reference.height);
+        let n = self.normals.normals()[normal];
+        let d = self.d();
+        let mut out = vec![0.0_f32; (w * h) as usize];
+        for y in 0..h {
+            for x in 0..w {
+                let p = (y * w + x) as usize;
+                let ray = self.reference.intrinsics.ray(mhi_geom::pixel_center(x, y));
+                let cos = n.dot(ray).max(0.0);
+                let mut t = 1.0_f64;
+                let mut acc = 0.0_f64;
+                for j in (0..d).rev() {
+                    let a = if j == 0 {
+                        1.0
+                    } else {
+                        f64::from(self.alpha_layer(normal, j)[p])
+                    };
+                    acc += t * a * cos / self.plane(normal, j).d();
+                    t *= 1.0 - a;
+                }
+                out[p] = acc as f32;
+            }
+        }
+        out
+    }
+}
+
 fn check_size(img: &Rgb32FImage, w: u32, h: u32, what: &str) -> Result<()> {
     if img.dimensions() != (w, h) {
         return Err(Error::InvalidMhi(format!(

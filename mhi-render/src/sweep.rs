@@ -133,7 +133,7 @@ pub fn plane_sweep_volume(
 /// Parameters of the training-free sweep MHI.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SweepConfig {
-    /// Radius of the box window the photo-consistency cost is averaged over (2 → 5 × 5).
+    /// Radius of the box window the photo-consistency cost is averaged over (4 → 9 × 9).
     pub window_radius: u32,
     /// Softmax temperature of the winner-take-all over depths, in units of mean absolute colour
     /// difference.
@@ -145,8 +145,8 @@ pub struct SweepConfig {
 impl Default for SweepConfig {
     fn default() -> Self {
         Self {
-            window_radius: 2,
-            temperature: 0.03,
+            window_radius: 4,
+            temperature: 0.01,
             invalid_cost: 0.25,
         }
     }
@@ -172,6 +172,19 @@ fn box_filter(cost: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
                 - integral[y1 * (w + 1) + x0]
                 + integral[y0 * (w + 1) + x0];
             out[y * w + x] = (s / ((y1 - y0) * (x1 - x0)) as f64) as f32;
+        }
+    }
+    out
+}
+
+/// Each channel of an interleaved RGB image minus its box-filtered local mean.
+fn zero_mean(rgb: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
+    let mut out = vec![0.0_f32; rgb.len()];
+    for k in 0..3 {
+        let ch: Vec<f32> = rgb.iter().skip(k).step_by(3).copied().collect();
+        let mean = box_filter(&ch, w, h, r);
+        for p in 0..w * h {
+            out[3 * p + k] = ch[p] - mean[p];
         }
     }
     out
@@ -230,15 +243,20 @@ pub fn sweep_mhi(
         .par_chunks_mut(d * px)
         .enumerate()
         .for_each(|(i, out)| {
+            let r = cfg.window_radius as usize;
+            // Reference luminance-free colour with its local mean removed (zero-mean SAD): robust to
+            // the exposure and white-balance changes between real photos.
+            let ref_zm = zero_mean(refp, w, h, r);
             let costs: Vec<Vec<f32>> = (0..d)
                 .map(|j| {
                     let rgb = psv.plane_rgb(i, j);
                     let valid = psv.plane_valid(i, j);
+                    let src_zm = zero_mean(rgb, w, h, r);
                     let raw: Vec<f32> = (0..px)
                         .map(|p| {
                             if valid[p] > 0.0 {
                                 (0..3)
-                                    .map(|k| (rgb[3 * p + k] - refp[3 * p + k]).abs())
+                                    .map(|k| (src_zm[3 * p + k] - ref_zm[3 * p + k]).abs())
                                     .sum::<f32>()
                                     / 3.0
                             } else {
@@ -246,7 +264,7 @@ pub fn sweep_mhi(
                             }
                         })
                         .collect();
-                    box_filter(&raw, w, h, cfg.window_radius as usize)
+                    box_filter(&raw, w, h, r)
                 })
                 .collect();
             // Softmax over depths of −cost / τ (max subtracted).

@@ -415,6 +415,12 @@ pub struct SweepArgs {
     /// Farthest plane depth.
     #[arg(long, default_value_t = 100.0)]
     pub far: f64,
+    /// Softmax temperature of the winner-take-all over depths (lower is sharper).
+    #[arg(long, default_value_t = SweepConfig::default().temperature)]
+    pub temperature: f32,
+    /// Radius of the box window of the photo-consistency cost.
+    #[arg(long, default_value_t = SweepConfig::default().window_radius)]
+    pub window: u32,
     /// Output directory for the images and summary.json.
     #[arg(long, default_value = "out/sweep")]
     pub out: PathBuf,
@@ -456,15 +462,14 @@ pub fn sweep(a: &SweepArgs) -> anyhow::Result<()> {
         NormalSet::paper_subset(a.normals)?
     };
     let depths = depths_linear_in_disparity(a.near, a.far, a.planes)?;
+    let cfg = SweepConfig {
+        temperature: a.temperature,
+        window_radius: a.window,
+        ..SweepConfig::default()
+    };
     let t0 = Instant::now();
     let mhi = sweep_mhi(
-        &normals,
-        &depths,
-        &rf.camera,
-        &rf.image,
-        &sf.camera,
-        &sf.image,
-        &SweepConfig::default(),
+        &normals, &depths, &rf.camera, &rf.image, &sf.camera, &sf.image, &cfg,
     )?;
     let build_ms = t0.elapsed().as_secs_f64() * 1e3;
     let t1 = Instant::now();
@@ -513,6 +518,19 @@ pub fn sweep(a: &SweepArgs) -> anyhow::Result<()> {
         &a.out.join("nearest_error.png"),
         &error_map(&nearest.image, &tf.image),
     )?;
+    // Disparity of the fronto-parallel (or first) normal as grey, near = white.
+    let fronto = normals
+        .normals()
+        .iter()
+        .position(|n| n.z > 0.999)
+        .unwrap_or(0);
+    let disp = mhi.expected_disparity(fronto);
+    let max = disp.iter().cloned().fold(1e-6_f32, f32::max);
+    let dimg = Rgb32FImage::from_fn(rf.camera.width, rf.camera.height, |x, y| {
+        let v = disp[(y * rf.camera.width + x) as usize] / max;
+        image::Rgb([v, v, v])
+    });
+    save_png(&a.out.join("reference_disparity.png"), &dimg)?;
     for (i, mni) in out.multi_normal.iter().enumerate() {
         save_png(&a.out.join(format!("multi_normal_{}.png", i + 1)), mni)?;
     }

@@ -132,12 +132,21 @@ pub(crate) fn row_major_f32(h: &DMat3) -> [f32; 9] {
 
 /// Normalised heuristic weights `N × H × W` on the target grid (f32; δ in f64 per pixel).
 pub fn heuristic_weights(mhi: &Mhi, target: &Camera, heuristic: BlendHeuristic) -> Vec<f32> {
-    let n = mhi.n();
+    heuristic_weights_for(mhi.normals(), mhi.reference(), target, heuristic)
+}
+
+/// As [`heuristic_weights`], from the normals and the reference camera alone.
+pub fn heuristic_weights_for(
+    normals: &mhi_geom::NormalSet,
+    reference: &Camera,
+    target: &Camera,
+    heuristic: BlendHeuristic,
+) -> Vec<f32> {
+    let n = normals.len();
     let (w, h) = (target.width as usize, target.height as usize);
-    let r = mhi.reference().from_other(target).rotation();
+    let r = reference.from_other(target).rotation();
     // Normals in the target frame, normalised once.
-    let nt: Vec<DVec3> = mhi
-        .normals()
+    let nt: Vec<DVec3> = normals
         .normals()
         .iter()
         .map(|v| (r.transpose() * *v).normalize())

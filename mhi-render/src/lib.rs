@@ -33,6 +33,7 @@
 //! ```
 
 mod cpu;
+pub mod diff;
 mod error;
 mod mhi;
 mod oracle;

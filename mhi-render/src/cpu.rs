@@ -322,6 +322,9 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
             let mut c = vec![0.0_f32; tw * 3];
             let mut t = vec![1.0_f32; tw];
             let (mut sxs, mut sys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
+            let (mut fxs, mut fys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
+            let mut idx = vec![0_u32; tw];
+            let stop = eps > 0.0;
             let v = y as f32 + 0.5;
             for i in 0..n {
                 if !active[i] {
@@ -335,37 +338,80 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
                         Some(s) => s,
                         None => &per_layer[i * d + j],
                     };
-                    // Pass 1 (vectorisable): sample positions of the whole row; invalid samples
-                    // (w ≤ ε) are sent outside the image, where they read zero.
+                    // Pass 1 (vectorisable): sample positions of the whole row, split into the
+                    // top-left texel index and the bilinear fractions. Invalid samples (w ≤ ε)
+                    // are sent outside the image, where they read zero.
                     let (bx, by, bw) = (h[1] * v + h[2], h[4] * v + h[5], h[7] * v + h[8]);
-                    for (x, (px_, py_)) in sxs.iter_mut().zip(sys.iter_mut()).enumerate() {
+                    let (wmax, hmax) = ((rw - 1) as f32, (rh - 1) as f32);
+                    for x in 0..tw {
                         let u = x as f32 + 0.5;
                         let w = h[6] * u + bw;
                         let ok = w > W_EPS;
                         let inv = 1.0 / if ok { w } else { 1.0 };
-                        *px_ = if ok {
+                        let sx = if ok {
                             (h[0] * u + bx) * inv - 0.5
                         } else {
                             -2.0
                         };
-                        *py_ = if ok {
+                        let sy = if ok {
                             (h[3] * u + by) * inv - 0.5
                         } else {
                             -2.0
                         };
+                        sxs[x] = sx;
+                        sys[x] = sy;
+                        // All four taps inside: 0 ≤ sx < w − 1 and 0 ≤ sy < h − 1.
+                        let inside = sx >= 0.0 && sy >= 0.0 && sx < wmax && sy < hmax;
+                        let xi = if inside { sx as u32 } else { 0 };
+                        let yi = if inside { sy as u32 } else { 0 };
+                        fxs[x] = sx - xi as f32;
+                        fys[x] = sy - yi as f32;
+                        idx[x] = if inside {
+                            yi * rw as u32 + xi
+                        } else {
+                            u32::MAX
+                        };
                     }
                     // Pass 2: bilinear fetches and front-to-back compositing.
                     for (x, (tx, cx)) in t.iter_mut().zip(c.chunks_exact_mut(3)).enumerate() {
-                        if *tx <= eps && eps > 0.0 {
+                        if stop && *tx <= eps {
                             continue;
                         }
-                        let (a, col) = sample(alpha, color, rw, rh, sxs[x], sys[x]);
+                        let (a, col) = if idx[x] != u32::MAX {
+                            let i = idx[x] as usize;
+                            let (ax, ay) = (fxs[x], fys[x]);
+                            let (w00, w10, w01, w11) = (
+                                (1.0 - ax) * (1.0 - ay),
+                                ax * (1.0 - ay),
+                                (1.0 - ax) * ay,
+                                ax * ay,
+                            );
+                            let (a_top, a_bot) = (&alpha[i..i + 2], &alpha[i + rw..i + rw + 2]);
+                            let (c_top, c_bot) = (&color[i..i + 2], &color[i + rw..i + rw + 2]);
+                            let a =
+                                w00 * a_top[0] + w10 * a_top[1] + w01 * a_bot[0] + w11 * a_bot[1];
+                            let mut col = [0.0_f32; 3];
+                            for k in 0..3 {
+                                col[k] = w00 * c_top[0][k]
+                                    + w10 * c_top[1][k]
+                                    + w01 * c_bot[0][k]
+                                    + w11 * c_bot[1][k];
+                            }
+                            (a, col)
+                        } else {
+                            // Border or outside: the general sampler (zero padding).
+                            sample(alpha, color, rw, rh, sxs[x], sys[x])
+                        };
                         let a = if far { 1.0 } else { a };
                         let ta = *tx * a;
                         cx[0] += ta * col[0];
                         cx[1] += ta * col[1];
                         cx[2] += ta * col[2];
                         *tx -= ta;
+                    }
+                    // Every pixel of the row is opaque: the farther layers cannot show.
+                    if stop && t.iter().all(|v| *v <= eps) {
+                        break;
                     }
                 }
                 let wrow = &weights[i * px + y * tw..i * px + (y + 1) * tw];

@@ -1,1 +1,59 @@
-//! The burn networks of MHI view synthesis (not implemented yet: issue #5).
+//! The learned half of MHI view synthesis on burn: the stage-1 3D U-Nets over the oriented cost
+//! volume, the stage-2 blending U-Net, the training loss and the two-phase training loop.
+//!
+//! # Example
+//!
+//! ```
+//! use burn::tensor::{Device, Tensor};
+//! use mhi_net::{BlendNetConfig, Stage1Config, UNet3dConfig};
+//!
+//! let device = Device::flex();
+//! let stage1 = Stage1Config::new(UNet3dConfig::new().with_width(4), 2).init(&device);
+//! // Two normals, 6 channels, 3 planes, 8 × 8 pixels.
+//! let alphas = stage1.forward(Tensor::zeros([2, 6, 3, 8, 8], &device));
+//! assert_eq!(alphas.dims(), [2, 1, 3, 8, 8]);
+//! let blend = BlendNetConfig::new(2).with_width(4).init(&device);
+//! let weights = blend.forward(Tensor::zeros([1, 8, 8, 8], &device));
+//! assert_eq!(weights.dims(), [1, 2, 8, 8]);
+//! ```
+
+pub mod loss;
+mod nets;
+mod train;
+
+pub use nets::{BlendNet, BlendNetConfig, Stage1, Stage1Config, UNet3d, UNet3dConfig};
+pub use train::{CSV_HEADER, Sample, StepReport, StepTimes, TrainConfig, Trainer, init_models};
+
+/// Why building, training or resuming a model failed.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A configuration that cannot be trained, or a run directory in the wrong state.
+    #[error("{0}")]
+    Config(String),
+    /// A checkpoint that cannot be read or does not match the run's configuration.
+    #[error("checkpoint: {0}")]
+    Checkpoint(String),
+    /// A loss or output that became NaN or infinite.
+    #[error("non-finite value: {0}")]
+    NonFinite(String),
+    /// A file that could not be read or written.
+    #[error("{path}: {source}", path = path.display())]
+    Io {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// Data that could not be loaded.
+    #[error(transparent)]
+    Data(Box<mhi_data::Error>),
+    /// Rendering inputs refused.
+    #[error(transparent)]
+    Render(#[from] mhi_render::Error),
+    /// Geometry refused.
+    #[error(transparent)]
+    Geometry(#[from] mhi_geom::Error),
+}
+
+/// Result of a network operation.
+pub type Result<T> = std::result::Result<T, Error>;

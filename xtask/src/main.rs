@@ -4,6 +4,7 @@ mod bench;
 mod data;
 mod experiments;
 mod progress;
+mod train;
 
 use clap::Parser;
 
@@ -28,6 +29,10 @@ enum Task {
     /// Time one novel view of an N x D MHI against the PyTorch peer renderer (same machine, same
     /// run, same thread count) and against the memory-bandwidth floor.
     Bench(bench::BenchArgs),
+    /// Train the two-stage MHI model (phase 1: stage-1 3D U-Nets; phase 2: the blending U-Net);
+    /// `--normals 1` trains the MPI baseline with the same code. Checkpoints are atomic and
+    /// `--resume` continues exactly where a run stopped.
+    Train(train::TrainArgs),
 }
 
 fn main() {
@@ -37,6 +42,7 @@ fn main() {
         Task::Oracle(a) => experiments::oracle(&a),
         Task::Sweep(a) => experiments::sweep(&a),
         Task::Bench(a) => bench::bench(&a),
+        Task::Train(a) => train::train(&a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

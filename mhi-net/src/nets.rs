@@ -1,0 +1,272 @@
+//! The two networks: a 3D U-Net per normal over the oriented cost volume (stage 1) and a 2D
+//! U-Net that predicts per-pixel blending weights of the multi-normal images (stage 2).
+
+use burn::config::Config;
+use burn::module::Module;
+use burn::nn::conv::{
+    Conv2d, Conv2dConfig, Conv3d, Conv3dConfig, ConvTranspose2d, ConvTranspose2dConfig,
+    ConvTranspose3d, ConvTranspose3dConfig,
+};
+use burn::nn::{LayerNorm, LayerNormConfig, PaddingConfig2d, PaddingConfig3d};
+use burn::tensor::activation::{relu, sigmoid, softmax};
+use burn::tensor::{Device, Tensor};
+
+/// Size of a 3D U-Net.
+#[derive(Config, Debug)]
+pub struct UNet3dConfig {
+    /// Input channels per plane (reference RGB and warped source RGB).
+    #[config(default = 6)]
+    pub in_channels: usize,
+    /// Channels of the first level; each level doubles them.
+    #[config(default = 8)]
+    pub width: usize,
+    /// Number of times the image is halved (the plane axis keeps its size). Images must be
+    /// divisible by `2^levels`.
+    #[config(default = 2)]
+    pub levels: usize,
+    /// Dilations of the residual convolutions at the bottom (in the image axes).
+    #[config(default = "vec![1, 2, 4]")]
+    pub dilations: Vec<usize>,
+}
+
+/// Convolution, layer normalisation over channels, ReLU.
+#[derive(Module, Debug)]
+pub struct Block3d {
+    conv: Conv3d,
+    norm: LayerNorm,
+}
+
+impl Block3d {
+    fn new(cin: usize, cout: usize, stride: [usize; 3], dilation: usize, device: &Device) -> Self {
+        Self {
+            conv: Conv3dConfig::new([cin, cout], [3, 3, 3])
+                .with_stride(stride)
+                .with_dilation([1, dilation, dilation])
+                .with_padding(PaddingConfig3d::Explicit(1, dilation, dilation))
+                .init(device),
+            norm: LayerNormConfig::new(cout).init(device),
+        }
+    }
+
+    /// # Shapes
+    /// `[B, Cin, D, H, W]` → `[B, Cout, D, H/stride, W/stride]`
+    fn forward(&self, x: Tensor<5>) -> Tensor<5> {
+        let x = self.conv.forward(x);
+        // Layer norm over channels: channels last, normalise, back.
+        let x = self
+            .norm
+            .forward(x.permute([0, 2, 3, 4, 1]))
+            .permute([0, 4, 1, 2, 3]);
+        relu(x)
+    }
+}
+
+/// The stage-1 network of one normal: encoder, dilated residual bottom, decoder with skip
+/// connections, and a sigmoid head giving one alpha per plane and pixel.
+#[derive(Module, Debug)]
+pub struct UNet3d {
+    stem: Block3d,
+    down: Vec<Block3d>,
+    mid: Vec<Block3d>,
+    up: Vec<ConvTranspose3d>,
+    dec: Vec<Block3d>,
+    head: Conv3d,
+}
+
+impl UNet3dConfig {
+    /// Build the network.
+    pub fn init(&self, device: &Device) -> UNet3d {
+        let w = self.width;
+        let ch = |l: usize| w << l;
+        let bottom = ch(self.levels);
+        UNet3d {
+            stem: Block3d::new(self.in_channels, w, [1, 1, 1], 1, device),
+            down: (0..self.levels)
+                .map(|l| Block3d::new(ch(l), ch(l + 1), [1, 2, 2], 1, device))
+                .collect(),
+            mid: self
+                .dilations
+                .iter()
+                .map(|&d| Block3d::new(bottom, bottom, [1, 1, 1], d, device))
+                .collect(),
+            up: (0..self.levels)
+                .map(|l| {
+                    ConvTranspose3dConfig::new([ch(l + 1), ch(l)], [1, 2, 2])
+                        .with_stride([1, 2, 2])
+                        .init(device)
+                })
+                .collect(),
+            dec: (0..self.levels)
+                .map(|l| Block3d::new(2 * ch(l), ch(l), [1, 1, 1], 1, device))
+                .collect(),
+            head: Conv3dConfig::new([w, 1], [1, 1, 1]).init(device),
+        }
+    }
+}
+
+impl UNet3d {
+    /// Alphas of every plane.
+    ///
+    /// # Shapes
+    /// `[B, 6, D, H, W]` → `[B, 1, D, H, W]` in `[0, 1]` (H and W divisible by `2^levels`)
+    pub fn forward(&self, x: Tensor<5>) -> Tensor<5> {
+        let mut x = self.stem.forward(x);
+        let mut skips = Vec::with_capacity(self.down.len());
+        for down in &self.down {
+            skips.push(x.clone());
+            x = down.forward(x);
+        }
+        for mid in &self.mid {
+            x = x.clone() + mid.forward(x);
+        }
+        for (up, dec) in self.up.iter().zip(&self.dec).rev() {
+            let skip = skips.pop().expect("one skip per level");
+            x = dec.forward(Tensor::cat(vec![up.forward(x), skip], 1));
+        }
+        sigmoid(self.head.forward(x))
+    }
+}
+
+/// Stage 1: one 3D U-Net per normal, or one shared by all normals.
+#[derive(Config, Debug)]
+pub struct Stage1Config {
+    /// The per-normal network.
+    pub unet: UNet3dConfig,
+    /// Number of normals N.
+    pub normals: usize,
+    /// One network for every normal (the normal's volume differs, the weights do not).
+    #[config(default = true)]
+    pub share_weights: bool,
+}
+
+/// Stage 1 of the model.
+#[derive(Module, Debug)]
+pub struct Stage1 {
+    nets: Vec<UNet3d>,
+}
+
+impl Stage1Config {
+    /// Build stage 1.
+    pub fn init(&self, device: &Device) -> Stage1 {
+        let count = if self.share_weights { 1 } else { self.normals };
+        Stage1 {
+            nets: (0..count).map(|_| self.unet.init(device)).collect(),
+        }
+    }
+}
+
+impl Stage1 {
+    /// Alphas of all normals.
+    ///
+    /// # Shapes
+    /// `[N, 6, D, H, W]` (one oriented cost volume per normal) → `[N, 1, D, H, W]`
+    pub fn forward(&self, volume: Tensor<5>) -> Tensor<5> {
+        if self.nets.len() == 1 {
+            return self.nets[0].forward(volume);
+        }
+        let parts = self
+            .nets
+            .iter()
+            .enumerate()
+            .map(|(i, net)| net.forward(volume.clone().narrow(0, i, 1)))
+            .collect();
+        Tensor::cat(parts, 0)
+    }
+}
+
+/// Size of the 2D blending U-Net.
+#[derive(Config, Debug)]
+pub struct BlendNetConfig {
+    /// Number of normals N (input 4N channels, output N weights).
+    pub normals: usize,
+    /// Channels of the first level; each level doubles them.
+    #[config(default = 16)]
+    pub width: usize,
+    /// Number of times the image is halved.
+    #[config(default = 2)]
+    pub levels: usize,
+}
+
+/// Convolution, layer normalisation over channels, ReLU (2D).
+#[derive(Module, Debug)]
+pub struct Block2d {
+    conv: Conv2d,
+    norm: LayerNorm,
+}
+
+impl Block2d {
+    fn new(cin: usize, cout: usize, stride: usize, device: &Device) -> Self {
+        Self {
+            conv: Conv2dConfig::new([cin, cout], [3, 3])
+                .with_stride([stride, stride])
+                .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
+                .init(device),
+            norm: LayerNormConfig::new(cout).init(device),
+        }
+    }
+
+    fn forward(&self, x: Tensor<4>) -> Tensor<4> {
+        let x = self.conv.forward(x);
+        relu(
+            self.norm
+                .forward(x.permute([0, 2, 3, 1]))
+                .permute([0, 3, 1, 2]),
+        )
+    }
+}
+
+/// The stage-2 network: per-pixel softmax weights over the normals.
+#[derive(Module, Debug)]
+pub struct BlendNet {
+    stem: Block2d,
+    down: Vec<Block2d>,
+    up: Vec<ConvTranspose2d>,
+    dec: Vec<Block2d>,
+    head: Conv2d,
+}
+
+impl BlendNetConfig {
+    /// Build the network.
+    pub fn init(&self, device: &Device) -> BlendNet {
+        let w = self.width;
+        let ch = |l: usize| w << l;
+        BlendNet {
+            stem: Block2d::new(4 * self.normals, w, 1, device),
+            down: (0..self.levels)
+                .map(|l| Block2d::new(ch(l), ch(l + 1), 2, device))
+                .collect(),
+            up: (0..self.levels)
+                .map(|l| {
+                    ConvTranspose2dConfig::new([ch(l + 1), ch(l)], [2, 2])
+                        .with_stride([2, 2])
+                        .init(device)
+                })
+                .collect(),
+            dec: (0..self.levels)
+                .map(|l| Block2d::new(2 * ch(l), ch(l), 1, device))
+                .collect(),
+            head: Conv2dConfig::new([w, self.normals], [1, 1]).init(device),
+        }
+    }
+}
+
+impl BlendNet {
+    /// Blending weights.
+    ///
+    /// # Shapes
+    /// `[1, 4N, H, W]` (the N multi-normal images and their heuristic weight) → `[1, N, H, W]`,
+    /// a softmax over N at every pixel
+    pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
+        let mut x = self.stem.forward(x);
+        let mut skips = Vec::with_capacity(self.down.len());
+        for down in &self.down {
+            skips.push(x.clone());
+            x = down.forward(x);
+        }
+        for (up, dec) in self.up.iter().zip(&self.dec).rev() {
+            let skip = skips.pop().expect("one skip per level");
+            x = dec.forward(Tensor::cat(vec![up.forward(x), skip], 1));
+        }
+        softmax(self.head.forward(x), 1)
+    }
+}

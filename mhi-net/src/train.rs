@@ -1,0 +1,747 @@
+//! The two-phase training loop: phase 1 trains stage 1 on every multi-normal image, phase 2
+//! freezes it and trains the blending network on the blended image. Each step's triplet is a
+//! pure function of `(seed, step)`, so a resumed run continues exactly as an uninterrupted one.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use burn::config::Config;
+use burn::module::Module;
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::tensor::{Device, Tensor, TensorData};
+use mhi_data::{Dataset, Fit, LoadedFrame, Sequence, load_frame, sample_training_triplet};
+use mhi_geom::{BlendHeuristic, NormalSet, depths_linear_in_disparity};
+use mhi_render::diff::{WarpGeometry, heuristic_weights_tensor, image_to_tensor, render_shared};
+use mhi_render::plane_sweep_volume;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::Error;
+use crate::loss::{LOSS_NAME, photometric};
+use crate::nets::{BlendNet, BlendNetConfig, Stage1, Stage1Config, UNet3dConfig};
+
+/// Everything that defines a training run; saved as `config.json` in the run directory.
+#[derive(Config, Debug)]
+pub struct TrainConfig {
+    /// Stage-1 networks.
+    pub stage1: Stage1Config,
+    /// Blending network.
+    pub blend: BlendNetConfig,
+    /// Optimizer (Adam; the paper's learning rate is `lr`).
+    pub optimizer: AdamConfig,
+    /// Learning rate.
+    #[config(default = 2e-4)]
+    pub lr: f64,
+    /// Seed of the initial weights and of every step's triplet.
+    #[config(default = 0)]
+    pub seed: u64,
+    /// Training image width.
+    #[config(default = 64)]
+    pub width: u32,
+    /// Training image height.
+    #[config(default = 64)]
+    pub height: u32,
+    /// Planes per normal D.
+    #[config(default = 8)]
+    pub planes: usize,
+    /// Nearest plane depth.
+    #[config(default = 1.0)]
+    pub near: f64,
+    /// Farthest plane depth.
+    #[config(default = 100.0)]
+    pub far: f64,
+    /// Steps of phase 1 (stage 1 on every multi-normal image).
+    #[config(default = 300)]
+    pub phase1_steps: usize,
+    /// Steps of phase 2 (blending network, stage 1 frozen).
+    #[config(default = 150)]
+    pub phase2_steps: usize,
+    /// Write a checkpoint every this many steps (and at the end).
+    #[config(default = 50)]
+    pub checkpoint_every: usize,
+    /// The loss actually used (filled in by the trainer).
+    #[config(default = "String::new()")]
+    pub loss: String,
+}
+
+impl TrainConfig {
+    /// The default run for N normals: a CPU-sized model.
+    pub fn for_normals(normals: usize) -> Self {
+        TrainConfig::new(
+            Stage1Config::new(UNet3dConfig::new(), normals),
+            BlendNetConfig::new(normals),
+            AdamConfig::new(),
+        )
+    }
+
+    /// Total number of steps of both phases.
+    pub fn total_steps(&self) -> usize {
+        self.phase1_steps + self.phase2_steps
+    }
+
+    /// The normal set (the paper's subsets).
+    pub fn normal_set(&self) -> crate::Result<NormalSet> {
+        let n = self.stage1.normals;
+        Ok(if n == 5 {
+            NormalSet::paper()
+        } else {
+            NormalSet::paper_subset(n)?
+        })
+    }
+
+    fn validate(&self) -> crate::Result<()> {
+        let m = 1usize << self.stage1.unet.levels.max(self.blend.levels);
+        if !(self.width as usize).is_multiple_of(m) || !(self.height as usize).is_multiple_of(m) {
+            return Err(Error::Config(format!(
+                "training size {}x{} must be divisible by {m} (2^levels of the U-Nets)",
+                self.width, self.height
+            )));
+        }
+        if self.planes == 0 || self.stage1.normals == 0 || self.blend.normals != self.stage1.normals
+        {
+            return Err(Error::Config(
+                "planes and normals must be positive and agree between the stages".into(),
+            ));
+        }
+        if !(self.lr > 0.0 && self.lr.is_finite()) {
+            return Err(Error::Config(format!(
+                "learning rate {} must be positive",
+                self.lr
+            )));
+        }
+        if self.checkpoint_every == 0 {
+            return Err(Error::Config("checkpoint_every must be at least 1".into()));
+        }
+        Ok(())
+    }
+}
+
+/// Wall-clock split of one training step, in milliseconds.
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
+pub struct StepTimes {
+    /// Loading frames and building the oriented cost volume (CPU).
+    pub volume_ms: f64,
+    /// Stage-1 forward.
+    pub stage1_ms: f64,
+    /// Warp, composite and (phase 2) the blending network forward.
+    pub render_ms: f64,
+    /// Loss.
+    pub loss_ms: f64,
+    /// Backward pass and optimizer step.
+    pub backward_ms: f64,
+}
+
+/// What one step did.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct StepReport {
+    /// Step index (0-based) that was just taken.
+    pub step: usize,
+    /// 1 or 2.
+    pub phase: u8,
+    /// Loss value.
+    pub loss: f32,
+    /// PSNR of the trained output (mean over normals in phase 1) against the target.
+    pub psnr: f32,
+    /// Time split.
+    pub times: StepTimes,
+}
+
+/// The checkpoint pointer `latest.json`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct Latest {
+    step: usize,
+    dir: String,
+}
+
+/// One training sample: the three views at the training size.
+pub struct Sample {
+    /// Reference view (the MHI's grid).
+    pub reference: LoadedFrame,
+    /// Source view.
+    pub source: LoadedFrame,
+    /// Target view.
+    pub target: LoadedFrame,
+}
+
+/// A training run in progress.
+pub struct Trainer {
+    config: TrainConfig,
+    dir: PathBuf,
+    device: Device,
+    dataset: Dataset,
+    normals: NormalSet,
+    depths: Vec<f64>,
+    stage1: Stage1,
+    blend: BlendNet,
+    opt1: ModuleOptimizer,
+    opt2: ModuleOptimizer,
+    step: usize,
+    started: Instant,
+    elapsed_before: f64,
+}
+
+fn io(path: &Path, e: std::io::Error) -> Error {
+    Error::Io {
+        path: path.to_path_buf(),
+        source: e,
+    }
+}
+
+fn write_atomic(path: &Path, bytes: &[u8]) -> crate::Result<()> {
+    mhi_data::write_atomic(path, bytes).map_err(|e| Error::Data(Box::new(e)))
+}
+
+impl Trainer {
+    /// Start a new run in `dir` (which must not hold a run yet) on the sequences of
+    /// `data_root/train`.
+    pub fn new(
+        mut config: TrainConfig,
+        dir: &Path,
+        data_root: &Path,
+        device: Device,
+    ) -> crate::Result<Self> {
+        config.validate()?;
+        if dir.join("config.json").exists() {
+            return Err(Error::Config(format!(
+                "{} already holds a training run; pass --resume to continue it or choose another --run",
+                dir.display()
+            )));
+        }
+        std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
+        config.loss = LOSS_NAME.into();
+        write_atomic(
+            &dir.join("config.json"),
+            serde_json::to_string_pretty(&config)
+                .map_err(|e| Error::Config(e.to_string()))?
+                .as_bytes(),
+        )?;
+        write_atomic(&dir.join("log.csv"), CSV_HEADER.as_bytes())?;
+        let (stage1, blend) = init_models(&config, &device);
+        Self::assemble(config, dir, data_root, device, stage1, blend, 0, 0.0)
+    }
+
+    /// Continue the run in `dir` from its latest checkpoint.
+    pub fn resume(dir: &Path, data_root: &Path, device: Device) -> crate::Result<Self> {
+        let cfg_path = dir.join("config.json");
+        let text = std::fs::read_to_string(&cfg_path).map_err(|e| io(&cfg_path, e))?;
+        let config: TrainConfig = serde_json::from_str(&text)
+            .map_err(|e| Error::Config(format!("{}: {e}", cfg_path.display())))?;
+        config.validate()?;
+        let latest_path = dir.join("latest.json");
+        let latest: Latest = match std::fs::read_to_string(&latest_path) {
+            Ok(t) => serde_json::from_str(&t)
+                .map_err(|e| Error::Config(format!("{}: {e}", latest_path.display())))?,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Err(Error::Config(format!(
+                    "{}: the run has no checkpoint yet; start it again without --resume",
+                    dir.display()
+                )));
+            }
+            Err(e) => return Err(io(&latest_path, e)),
+        };
+        let ck = dir.join(&latest.dir);
+        let load = |what: &str| ck.join(format!("{what}.bpk"));
+        let stage1 = config
+            .stage1
+            .init(&device)
+            .try_load_file(load("stage1"))
+            .map_err(|e| Error::Checkpoint(format!("{}: {e}", load("stage1").display())))?;
+        let blend = config
+            .blend
+            .init(&device)
+            .try_load_file(load("blend"))
+            .map_err(|e| Error::Checkpoint(format!("{}: {e}", load("blend").display())))?;
+        let state_path = ck.join("state.json");
+        let state: CheckpointState = serde_json::from_str(
+            &std::fs::read_to_string(&state_path).map_err(|e| io(&state_path, e))?,
+        )
+        .map_err(|e| Error::Checkpoint(format!("{}: {e}", state_path.display())))?;
+        let mut t = Self::assemble(
+            config,
+            dir,
+            data_root,
+            device,
+            stage1,
+            blend,
+            latest.step,
+            state.elapsed_s,
+        )?;
+        t.opt1 = t
+            .opt1
+            .clone()
+            .load(load("opt1"))
+            .map_err(|e| Error::Checkpoint(format!("{}: {e}", load("opt1").display())))?;
+        t.opt2 = t
+            .opt2
+            .clone()
+            .load(load("opt2"))
+            .map_err(|e| Error::Checkpoint(format!("{}: {e}", load("opt2").display())))?;
+        // Drop log rows written after the checkpoint by the interrupted run.
+        let log = dir.join("log.csv");
+        let text = std::fs::read_to_string(&log).unwrap_or_else(|_| CSV_HEADER.into());
+        let kept: String = text
+            .lines()
+            .enumerate()
+            .filter(|(i, l)| {
+                *i == 0
+                    || l.split(',')
+                        .next()
+                        .and_then(|s| s.parse::<usize>().ok())
+                        .is_some_and(|s| s < latest.step)
+            })
+            .map(|(_, l)| format!("{l}\n"))
+            .collect();
+        write_atomic(&log, kept.as_bytes())?;
+        Ok(t)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn assemble(
+        config: TrainConfig,
+        dir: &Path,
+        data_root: &Path,
+        device: Device,
+        stage1: Stage1,
+        blend: BlendNet,
+        step: usize,
+        elapsed_before: f64,
+    ) -> crate::Result<Self> {
+        let dataset = Dataset::open(data_root, "train", 3).map_err(|e| Error::Data(Box::new(e)))?;
+        if dataset.sequences.is_empty() {
+            return Err(Error::Config(format!(
+                "{}: no training sequence",
+                dataset.dir.display()
+            )));
+        }
+        let normals = config.normal_set()?;
+        let depths = depths_linear_in_disparity(config.near, config.far, config.planes)?;
+        let opt1 = config.optimizer.init();
+        let opt2 = config.optimizer.init();
+        Ok(Self {
+            config,
+            dir: dir.to_path_buf(),
+            device,
+            dataset,
+            normals,
+            depths,
+            stage1,
+            blend,
+            opt1,
+            opt2,
+            step,
+            started: Instant::now(),
+            elapsed_before,
+        })
+    }
+
+    /// The run's configuration.
+    pub fn config(&self) -> &TrainConfig {
+        &self.config
+    }
+    /// Steps taken so far.
+    pub fn step_index(&self) -> usize {
+        self.step
+    }
+    /// Whether both phases are done.
+    pub fn finished(&self) -> bool {
+        self.step >= self.config.total_steps()
+    }
+    /// Wall-clock seconds of training so far, across resumes.
+    pub fn elapsed_s(&self) -> f64 {
+        self.elapsed_before + self.started.elapsed().as_secs_f64()
+    }
+    /// The stage-1 networks.
+    pub fn stage1(&self) -> &Stage1 {
+        &self.stage1
+    }
+    /// The blending network.
+    pub fn blend_net(&self) -> &BlendNet {
+        &self.blend
+    }
+
+    /// The training sample of `step` (deterministic).
+    pub fn sample(&self, step: usize) -> crate::Result<Sample> {
+        let mut rng = ChaCha8Rng::seed_from_u64(
+            self.config.seed ^ (step as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+        );
+        for _ in 0..32 {
+            let seq: &Sequence =
+                &self.dataset.sequences[rng.random_range(0..self.dataset.sequences.len())];
+            let Some(t) = sample_training_triplet(seq, &mut rng) else {
+                continue;
+            };
+            let size = Some((self.config.width, self.config.height));
+            let load = |i: usize| {
+                load_frame(&seq.frames[i], size, Fit::Stretch).map_err(|e| Error::Data(Box::new(e)))
+            };
+            return Ok(Sample {
+                reference: load(t.reference)?,
+                source: load(t.source)?,
+                target: load(t.target)?,
+            });
+        }
+        Err(Error::Config(
+            "no sequence yields a triplet (each needs 3 frames)".into(),
+        ))
+    }
+
+    /// Take one training step (phase 1 or 2 by the step index) and log it.
+    pub fn step(&mut self) -> crate::Result<StepReport> {
+        let step = self.step;
+        let phase = if step < self.config.phase1_steps {
+            1
+        } else {
+            2
+        };
+        let t0 = Instant::now();
+        let sample = self.sample(step)?;
+        let volume = self.cost_volume(&sample)?;
+        let mut times = StepTimes {
+            volume_ms: ms(t0),
+            ..StepTimes::default()
+        };
+        let (n, d) = (self.normals.len(), self.depths.len());
+        let (w, h) = (self.config.width as usize, self.config.height as usize);
+        let t1 = Instant::now();
+        let alpha = self.stage1.forward(volume).reshape([n * d, 1, h, w]);
+        times.stage1_ms = ms(t1);
+        let t2 = Instant::now();
+        let geom = WarpGeometry::new(
+            &self.normals,
+            &self.depths,
+            &sample.reference.camera,
+            &sample.target.camera,
+            &self.device,
+        )?;
+        let color = image_to_tensor(&sample.reference.image, &self.device);
+        let soft = heuristic_weights_tensor(
+            &self.normals,
+            &sample.reference.camera,
+            &sample.target.camera,
+            BlendHeuristic::Soft,
+            &self.device,
+        );
+        let target = image_to_tensor(&sample.target.image, &self.device);
+        let (loss, output) = if phase == 1 {
+            let (_, mni) = render_shared(alpha, color, &geom, soft);
+            times.render_ms = ms(t2);
+            let t3 = Instant::now();
+            let loss = photometric(mni.clone(), target.clone().expand([n, 3, h, w]));
+            times.loss_ms = ms(t3);
+            (loss, mni)
+        } else {
+            let (_, mni) = render_shared(alpha.detach(), color, &geom, soft.clone());
+            let mni = mni.detach();
+            let input = Tensor::cat(
+                vec![
+                    mni.clone().reshape([1, 3 * n, h, w]),
+                    soft.reshape([1, n, h, w]),
+                ],
+                1,
+            );
+            let weights = self.blend.forward(input).reshape([n, 1, h, w]);
+            let image = mhi_render::diff::blend(mni, weights);
+            times.render_ms = ms(t2);
+            let t3 = Instant::now();
+            let loss = photometric(image.clone(), target.clone());
+            times.loss_ms = ms(t3);
+            (loss, image)
+        };
+        let t4 = Instant::now();
+        let loss_value = scalar(loss.clone())?;
+        if !loss_value.is_finite() {
+            return Err(Error::NonFinite(format!(
+                "loss at step {step} is {loss_value}"
+            )));
+        }
+        let grads = loss.backward();
+        if phase == 1 {
+            let g = GradientsParams::from_grads(grads, &self.stage1);
+            self.stage1 = self.opt1.step(self.config.lr, self.stage1.clone(), g);
+        } else {
+            let g = GradientsParams::from_grads(grads, &self.blend);
+            self.blend = self.opt2.step(self.config.lr, self.blend.clone(), g);
+        }
+        times.backward_ms = ms(t4);
+        let psnr = psnr_of(output.detach(), target, phase == 1, n)?;
+        self.step += 1;
+        let report = StepReport {
+            step,
+            phase,
+            loss: loss_value,
+            psnr,
+            times,
+        };
+        self.append_log(&report)?;
+        if self.step.is_multiple_of(self.config.checkpoint_every) || self.finished() {
+            self.checkpoint()?;
+        }
+        Ok(report)
+    }
+
+    /// The oriented cost volume `[N, 6, D, H, W]`: per normal and plane, the reference image and
+    /// the source image warped onto that plane.
+    pub fn cost_volume(&self, s: &Sample) -> crate::Result<Tensor<5>> {
+        let psv = plane_sweep_volume(
+            &self.normals,
+            &self.depths,
+            &s.reference.camera,
+            &s.source.image,
+            &s.source.camera,
+        )?;
+        let (n, d) = (self.normals.len(), self.depths.len());
+        let (w, h) = (self.config.width as usize, self.config.height as usize);
+        let px = w * h;
+        let refp = s.reference.image.as_raw();
+        let mut data = vec![0.0_f32; n * 6 * d * px];
+        for i in 0..n {
+            for c in 0..6 {
+                for j in 0..d {
+                    let dst = &mut data[((i * 6 + c) * d + j) * px..((i * 6 + c) * d + j + 1) * px];
+                    if c < 3 {
+                        for (p, v) in dst.iter_mut().enumerate() {
+                            *v = refp[3 * p + c];
+                        }
+                    } else {
+                        let src = psv.plane_rgb(i, j);
+                        for (p, v) in dst.iter_mut().enumerate() {
+                            *v = src[3 * p + c - 3];
+                        }
+                    }
+                }
+            }
+        }
+        Ok(Tensor::from_data(
+            TensorData::new(data, [n, 6, d, h, w]),
+            &self.device,
+        ))
+    }
+
+    fn append_log(&self, r: &StepReport) -> crate::Result<()> {
+        use std::io::Write as _;
+        let path = self.dir.join("log.csv");
+        let mut f = std::fs::OpenOptions::new()
+            .append(true)
+            .create(true)
+            .open(&path)
+            .map_err(|e| io(&path, e))?;
+        let t = r.times;
+        writeln!(
+            f,
+            "{},{},{:.6},{:.4},{:.3},{:.2},{:.2},{:.2},{:.2},{:.2}",
+            r.step,
+            r.phase,
+            r.loss,
+            r.psnr,
+            self.elapsed_s(),
+            t.volume_ms,
+            t.stage1_ms,
+            t.render_ms,
+            t.loss_ms,
+            t.backward_ms
+        )
+        .map_err(|e| io(&path, e))
+    }
+
+    /// Write a checkpoint of the current state (models, optimizers, step), atomically: a new
+    /// directory is filled, then `latest.json` is replaced to point at it, then older
+    /// checkpoints are removed.
+    pub fn checkpoint(&mut self) -> crate::Result<()> {
+        let name = format!("ckpt-{:07}", self.step);
+        let tmp = self.dir.join(format!(".tmp-{name}"));
+        let _ = std::fs::remove_dir_all(&tmp);
+        std::fs::create_dir_all(&tmp).map_err(|e| io(&tmp, e))?;
+        let ck = |e: burn::store::RecordError| Error::Checkpoint(e.to_string());
+        self.stage1
+            .clone()
+            .save_file(tmp.join("stage1.bpk"))
+            .map_err(ck)?;
+        self.blend
+            .clone()
+            .save_file(tmp.join("blend.bpk"))
+            .map_err(ck)?;
+        self.opt1.save(tmp.join("opt1.bpk")).map_err(ck)?;
+        self.opt2.save(tmp.join("opt2.bpk")).map_err(ck)?;
+        let state = CheckpointState {
+            step: self.step,
+            elapsed_s: self.elapsed_s(),
+        };
+        write_atomic(
+            &tmp.join("state.json"),
+            serde_json::to_string(&state)
+                .map_err(|e| Error::Config(e.to_string()))?
+                .as_bytes(),
+        )?;
+        let final_dir = self.dir.join(&name);
+        let _ = std::fs::remove_dir_all(&final_dir);
+        std::fs::rename(&tmp, &final_dir).map_err(|e| io(&final_dir, e))?;
+        let latest = Latest {
+            step: self.step,
+            dir: name.clone(),
+        };
+        write_atomic(
+            &self.dir.join("latest.json"),
+            serde_json::to_string(&latest)
+                .map_err(|e| Error::Config(e.to_string()))?
+                .as_bytes(),
+        )?;
+        // Remove older checkpoints.
+        if let Ok(rd) = std::fs::read_dir(&self.dir) {
+            for e in rd.flatten() {
+                let fname = e.file_name().to_string_lossy().into_owned();
+                if fname.starts_with("ckpt-") && fname != name {
+                    let _ = std::fs::remove_dir_all(e.path());
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The phase-1 loss (mean over normals) on the training sample of `step`, without training.
+    pub fn phase1_loss(&self, step: usize) -> crate::Result<f32> {
+        let s = self.sample(step)?;
+        let (n, d) = (self.normals.len(), self.depths.len());
+        let (w, h) = (self.config.width as usize, self.config.height as usize);
+        let alpha = self
+            .stage1
+            .forward(self.cost_volume(&s)?)
+            .reshape([n * d, 1, h, w])
+            .detach();
+        let geom = WarpGeometry::new(
+            &self.normals,
+            &self.depths,
+            &s.reference.camera,
+            &s.target.camera,
+            &self.device,
+        )?;
+        let soft = heuristic_weights_tensor(
+            &self.normals,
+            &s.reference.camera,
+            &s.target.camera,
+            BlendHeuristic::Soft,
+            &self.device,
+        );
+        let (_, mni) = render_shared(
+            alpha,
+            image_to_tensor(&s.reference.image, &self.device),
+            &geom,
+            soft,
+        );
+        let target = image_to_tensor(&s.target.image, &self.device).expand([n, 3, h, w]);
+        scalar(photometric(mni, target))
+    }
+
+    /// Mean PSNR over `count` deterministic samples drawn after training's range of steps: the
+    /// learned blend, and the Soft heuristic on the same stage 1.
+    pub fn evaluate(&self, count: usize) -> crate::Result<(f64, f64)> {
+        let (n, d) = (self.normals.len(), self.depths.len());
+        let (w, h) = (self.config.width as usize, self.config.height as usize);
+        let (mut learned, mut soft_sum) = (0.0, 0.0);
+        for k in 0..count {
+            let s = self.sample(1_000_000 + k)?;
+            let volume = self.cost_volume(&s)?;
+            let alpha = self
+                .stage1
+                .forward(volume)
+                .reshape([n * d, 1, h, w])
+                .detach();
+            let geom = WarpGeometry::new(
+                &self.normals,
+                &self.depths,
+                &s.reference.camera,
+                &s.target.camera,
+                &self.device,
+            )?;
+            let color = image_to_tensor(&s.reference.image, &self.device);
+            let soft = heuristic_weights_tensor(
+                &self.normals,
+                &s.reference.camera,
+                &s.target.camera,
+                BlendHeuristic::Soft,
+                &self.device,
+            );
+            let target = image_to_tensor(&s.target.image, &self.device);
+            let (soft_img, mni) = render_shared(alpha, color, &geom, soft.clone());
+            let input = Tensor::cat(
+                vec![
+                    mni.clone().reshape([1, 3 * n, h, w]),
+                    soft.reshape([1, n, h, w]),
+                ],
+                1,
+            );
+            let weights = self.blend.forward(input).reshape([n, 1, h, w]);
+            let img = mhi_render::diff::blend(mni, weights);
+            learned += f64::from(psnr_of(img.detach(), target.clone(), false, 1)?);
+            soft_sum += f64::from(psnr_of(soft_img.detach(), target, false, 1)?);
+        }
+        Ok((learned / count as f64, soft_sum / count as f64))
+    }
+}
+
+/// Header of `log.csv`.
+pub const CSV_HEADER: &str =
+    "step,phase,loss,psnr,elapsed_s,volume_ms,stage1_ms,render_ms,loss_ms,backward_ms\n";
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct CheckpointState {
+    step: usize,
+    elapsed_s: f64,
+}
+
+/// burn draws initial weights lazily from one process-wide RNG, so two models built in parallel
+/// (or a forward pass in between) would change each other's weights. This lock, the seed and an
+/// immediate read of every parameter make the initial weights a function of the seed alone.
+static INIT_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// The initial networks of `config`, deterministic for its seed.
+pub fn init_models(config: &TrainConfig, device: &Device) -> (Stage1, BlendNet) {
+    let _guard = INIT_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+    device.seed(config.seed);
+    let stage1 = materialize(config.stage1.init(device));
+    let blend = materialize(config.blend.init(device));
+    (stage1, blend)
+}
+
+fn materialize<M: Module>(m: M) -> M {
+    let record = m.clone().into_record();
+    m.load_record(record)
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+fn scalar(t: Tensor<1>) -> crate::Result<f32> {
+    let v: Vec<f32> = t
+        .into_data()
+        .try_to_vec()
+        .map_err(|e| Error::NonFinite(format!("cannot read loss: {e:?}")))?;
+    v.first()
+        .copied()
+        .ok_or_else(|| Error::NonFinite("empty loss".into()))
+}
+
+/// PSNR of `output` (`[N or 1, 3, H, W]`) against `target` (`[1, 3, H, W]`), averaged over the
+/// N images when `per_normal`.
+fn psnr_of(output: Tensor<4>, target: Tensor<4>, per_normal: bool, n: usize) -> crate::Result<f32> {
+    let [b, c, h, w] = output.dims();
+    let target = if per_normal {
+        target.expand([n, c, h, w])
+    } else {
+        target
+    };
+    let diff = (output.clamp(0.0, 1.0) - target).powi_scalar(2);
+    let mse: Vec<f32> = diff
+        .reshape([b, c * h * w])
+        .mean_dim(1)
+        .into_data()
+        .try_to_vec()
+        .map_err(|e| Error::NonFinite(format!("{e:?}")))?;
+    let p: f32 = mse
+        .iter()
+        .map(|m| 10.0 * (1.0 / m.max(1e-10)).log10())
+        .sum::<f32>()
+        / b as f32;
+    Ok(p)
+}

@@ -407,22 +407,12 @@ impl Trainer {
         let alpha = self.stage1.forward(volume).reshape([n * d, 1, h, w]);
         times.stage1_ms = ms(t1);
         let t2 = Instant::now();
-        let geom = WarpGeometry::new(
-            &self.normals,
-            &self.depths,
-            &sample.reference.camera,
-            &sample.target.camera,
-            &self.device,
-        )?;
-        let color = image_to_tensor(&sample.reference.image, &self.device);
-        let soft = heuristic_weights_tensor(
-            &self.normals,
-            &sample.reference.camera,
-            &sample.target.camera,
-            BlendHeuristic::Soft,
-            &self.device,
-        );
-        let target = image_to_tensor(&sample.target.image, &self.device);
+        let RenderInputs {
+            geom,
+            color,
+            soft,
+            target,
+        } = self.render_inputs(&sample)?;
         let (loss, output) = if phase == 1 {
             let (_, mni) = render_shared(alpha, color, &geom, soft);
             times.render_ms = ms(t2);
@@ -478,6 +468,18 @@ impl Trainer {
             self.checkpoint()?;
         }
         Ok(report)
+    }
+
+    /// The constant tensors of rendering a sample: warp grids, reference colour, Soft weights
+    /// and the target image.
+    fn render_inputs(&self, s: &Sample) -> crate::Result<RenderInputs> {
+        let (r, t) = (&s.reference.camera, &s.target.camera);
+        Ok(RenderInputs {
+            geom: WarpGeometry::new(&self.normals, &self.depths, r, t, &self.device)?,
+            color: image_to_tensor(&s.reference.image, &self.device),
+            soft: heuristic_weights_tensor(&self.normals, r, t, BlendHeuristic::Soft, &self.device),
+            target: image_to_tensor(&s.target.image, &self.device),
+        })
     }
 
     /// The oriented cost volume `[N, 6, D, H, W]`: per normal and plane, the reference image and
@@ -608,27 +610,14 @@ impl Trainer {
             .forward(self.cost_volume(&s)?)
             .reshape([n * d, 1, h, w])
             .detach();
-        let geom = WarpGeometry::new(
-            &self.normals,
-            &self.depths,
-            &s.reference.camera,
-            &s.target.camera,
-            &self.device,
-        )?;
-        let soft = heuristic_weights_tensor(
-            &self.normals,
-            &s.reference.camera,
-            &s.target.camera,
-            BlendHeuristic::Soft,
-            &self.device,
-        );
-        let (_, mni) = render_shared(
-            alpha,
-            image_to_tensor(&s.reference.image, &self.device),
-            &geom,
+        let RenderInputs {
+            geom,
+            color,
             soft,
-        );
-        let target = image_to_tensor(&s.target.image, &self.device).expand([n, 3, h, w]);
+            target,
+        } = self.render_inputs(&s)?;
+        let (_, mni) = render_shared(alpha, color, &geom, soft);
+        let target = target.expand([n, 3, h, w]);
         scalar(photometric(mni, target))
     }
 
@@ -646,22 +635,12 @@ impl Trainer {
                 .forward(volume)
                 .reshape([n * d, 1, h, w])
                 .detach();
-            let geom = WarpGeometry::new(
-                &self.normals,
-                &self.depths,
-                &s.reference.camera,
-                &s.target.camera,
-                &self.device,
-            )?;
-            let color = image_to_tensor(&s.reference.image, &self.device);
-            let soft = heuristic_weights_tensor(
-                &self.normals,
-                &s.reference.camera,
-                &s.target.camera,
-                BlendHeuristic::Soft,
-                &self.device,
-            );
-            let target = image_to_tensor(&s.target.image, &self.device);
+            let RenderInputs {
+                geom,
+                color,
+                soft,
+                target,
+            } = self.render_inputs(&s)?;
             let (soft_img, mni) = render_shared(alpha, color, &geom, soft.clone());
             let input = Tensor::cat(
                 vec![
@@ -677,6 +656,13 @@ impl Trainer {
         }
         Ok((learned / count as f64, soft_sum / count as f64))
     }
+}
+
+struct RenderInputs {
+    geom: WarpGeometry,
+    color: Tensor<4>,
+    soft: Tensor<4>,
+    target: Tensor<4>,
 }
 
 /// Header of `log.csv`.

@@ -216,17 +216,69 @@ pub struct LoadedFrame {
     pub camera: Camera,
 }
 
-/// Decode an image file, detecting its format from its content (not its extension).
+/// Decode an image file. Its content must match its extension: a JPEG named `.png` is refused
+/// with an error saying what it really holds (renaming it fixes it), rather than decoded by a
+/// guess that would hide a mixed-up dataset.
 pub fn read_rgb(path: &Path) -> Result<RgbImage> {
-    let reader = ImageReader::open(path)
-        .map_err(|e| Error::io(path, e))?
-        .with_guessed_format()
-        .map_err(|e| Error::io(path, e))?;
-    let img = reader.decode().map_err(|source| Error::Image {
+    let img = reader(path)?.decode().map_err(|source| Error::Image {
         path: path.to_path_buf(),
         source,
     })?;
     Ok(img.to_rgb8())
+}
+
+/// An image reader whose format was detected from the content and checked against the name.
+fn reader(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::File>>> {
+    let reader = ImageReader::open(path)
+        .map_err(|e| Error::io(path, e))?
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))?;
+    let by_name = image::ImageFormat::from_path(path).ok();
+    if let (Some(content), Some(name)) = (reader.format(), by_name)
+        && content != name
+    {
+        return Err(Error::Dataset {
+            path: path.to_path_buf(),
+            fault: format!(
+                "the file holds {content:?} data but its name says {name:?}; rename it with the right extension"
+            ),
+        });
+    }
+    Ok(reader)
+}
+
+/// Check that the frames have one size (read from their headers only): a sequence whose frames
+/// differ in size is a sign of mixed-up data, and is refused naming two frames that differ.
+pub fn check_same_size(frames: &[&Frame]) -> Result<(u32, u32)> {
+    let mut first: Option<((u32, u32), &Path)> = None;
+    for f in frames {
+        let dims = reader(&f.path)?
+            .into_dimensions()
+            .map_err(|source| Error::Image {
+                path: f.path.clone(),
+                source,
+            })?;
+        match first {
+            None => first = Some((dims, &f.path)),
+            Some((d0, p0)) if d0 != dims => {
+                return Err(Error::Dataset {
+                    path: f.path.clone(),
+                    fault: format!(
+                        "frames of one sequence differ in size: this one is {}x{}, {} is {}x{}",
+                        dims.0,
+                        dims.1,
+                        p0.display(),
+                        d0.0,
+                        d0.1
+                    ),
+                });
+            }
+            Some(_) => {}
+        }
+    }
+    first
+        .map(|(d, _)| d)
+        .ok_or_else(|| Error::InvalidArgument("no frame to check".into()))
 }
 
 /// Load a frame, optionally bringing it to `size = (width, height)` (Lanczos-3, which also

@@ -16,7 +16,7 @@ pub enum Error {
         fault: String,
     },
     /// A file or directory that could not be read or written.
-    #[error("{path}: {source}", path = path.display())]
+    #[error("{path}", path = path.display())]
     Io {
         /// The file or directory.
         path: PathBuf,
@@ -24,7 +24,7 @@ pub enum Error {
         source: std::io::Error,
     },
     /// An image that could not be decoded or encoded.
-    #[error("{path}: cannot decode or encode the image: {source}", path = path.display())]
+    #[error("{path}: cannot decode or encode the image", path = path.display())]
     Image {
         /// The image file.
         path: PathBuf,
@@ -32,7 +32,7 @@ pub enum Error {
         source: image::ImageError,
     },
     /// A JSON file that could not be read or written.
-    #[error("{path}: invalid JSON: {source}", path = path.display())]
+    #[error("{path}: invalid JSON", path = path.display())]
     Json {
         /// The JSON file.
         path: PathBuf,
@@ -48,7 +48,7 @@ pub enum Error {
         fault: String,
     },
     /// Geometry refused by `mhi-geom`, with what was being built.
-    #[error("{context}: {source}")]
+    #[error("{context}")]
     Geometry {
         /// What was being built.
         context: String,

@@ -37,7 +37,8 @@ use std::io::Write as _;
 use std::path::Path;
 
 pub use dataset::{
-    Dataset, Fit, Frame, LoadedFrame, Sequence, Warning, load_frame, read_rgb, to_f32, to_u8,
+    Dataset, Fit, Frame, LoadedFrame, Sequence, Warning, check_same_size, load_frame, read_rgb,
+    to_f32, to_u8,
 };
 pub use error::{Error, Result};
 pub use re10k::{COLUMNS, CameraFile, CameraRow};

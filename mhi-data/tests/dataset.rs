@@ -117,14 +117,36 @@ fn bad_files_give_errors_naming_them() {
         err.to_string().contains(&*f.path.to_string_lossy()),
         "{err}"
     );
-    // A JPEG under a .png name decodes by content.
+    // A JPEG under a .png name is refused, saying what it holds.
     let img = image::RgbImage::from_pixel(48, 32, image::Rgb([10, 200, 30]));
     image::DynamicImage::ImageRgb8(img)
         .save_with_format(&f.path, image::ImageFormat::Jpeg)
         .unwrap();
+    let err = load_frame(&f, None, Fit::Stretch).unwrap_err().to_string();
+    assert!(
+        err.contains(&*f.path.to_string_lossy()) && err.contains("Jpeg") && err.contains("rename"),
+        "{err}"
+    );
+    // Frames of different sizes within a sequence are refused, naming both.
+    let other = ds.sequences[0].frames[1].clone();
+    let small = f.path.with_extension("jpg");
+    image::DynamicImage::ImageRgb8(image::RgbImage::new(20, 10))
+        .save(&small)
+        .unwrap();
+    let g = mhi_data::Frame {
+        path: small,
+        ..f.clone()
+    };
+    let err = mhi_data::check_same_size(&[&other, &g])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("differ in size") && err.contains("20x10"),
+        "{err}"
+    );
     assert_eq!(
-        load_frame(&f, None, Fit::Stretch).unwrap().image.width(),
-        48
+        mhi_data::check_same_size(&[&other, &other]).unwrap(),
+        (48, 32)
     );
     // A camera file with NaN.
     let cam = train.join("scene_00000.txt");

@@ -22,7 +22,9 @@ mod nets;
 mod train;
 
 pub use nets::{BlendNet, BlendNetConfig, Stage1, Stage1Config, UNet3d, UNet3dConfig};
-pub use train::{CSV_HEADER, Sample, StepReport, StepTimes, TrainConfig, Trainer, init_models};
+pub use train::{
+    CSV_HEADER, GRAD_CLIP_NORM, Sample, StepReport, StepTimes, TrainConfig, Trainer, init_models,
+};
 
 /// Why building, training or resuming a model failed.
 #[derive(Debug, thiserror::Error)]
@@ -37,7 +39,7 @@ pub enum Error {
     #[error("non-finite value: {0}")]
     NonFinite(String),
     /// A file that could not be read or written.
-    #[error("{path}: {source}", path = path.display())]
+    #[error("{path}", path = path.display())]
     Io {
         /// The file.
         path: std::path::PathBuf,

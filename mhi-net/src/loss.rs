@@ -56,3 +56,29 @@ pub fn photometric(a: Tensor<4>, b: Tensor<4>) -> Tensor<1> {
 
 /// Name of the loss recorded in a run's config.
 pub const LOSS_NAME: &str = "0.15*L1 + 0.85*(1-SSIM)/2 (VGG perceptual weights not available)";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use burn::tensor::Device;
+
+    /// Guard: constant (zero-variance) and saturated images give a finite loss and gradient,
+    /// thanks to C1, C2 > 0.
+    #[test]
+    fn ssim_gradient_is_finite_on_flat_and_saturated_images() {
+        let device = Device::flex().autodiff();
+        for (va, vb) in [(0.0, 0.0), (1.0, 1.0), (0.0, 1.0), (0.5, 0.5)] {
+            let a: Tensor<4> = (Tensor::ones([1, 3, 8, 8], &device) * va).require_grad();
+            let b: Tensor<4> = Tensor::ones([1, 3, 8, 8], &device) * vb;
+            let loss = photometric(a.clone(), b);
+            let grads = loss.backward();
+            let g: Vec<f32> = a
+                .grad(&grads)
+                .expect("gradient")
+                .into_data()
+                .try_to_vec()
+                .unwrap();
+            assert!(g.iter().all(|x| x.is_finite()), "{va} vs {vb}");
+        }
+    }
+}

@@ -156,6 +156,17 @@ impl Stage1Config {
 }
 
 impl Stage1 {
+    /// Set the bias of every alpha head to `bias`: a large bias starts every alpha saturated
+    /// near 1 (a stress test of training; the sigmoid's gradient is then tiny but finite).
+    pub fn with_head_bias(mut self, bias: f32) -> Self {
+        for net in &mut self.nets {
+            if let Some(b) = net.head.bias.take() {
+                b_replace(&mut net.head.bias, b, bias);
+            }
+        }
+        self
+    }
+
     /// Alphas of all normals.
     ///
     /// # Shapes
@@ -172,6 +183,15 @@ impl Stage1 {
             .collect();
         Tensor::cat(parts, 0)
     }
+}
+
+fn b_replace(
+    slot: &mut Option<burn::module::Param<Tensor<1>>>,
+    old: burn::module::Param<Tensor<1>>,
+    value: f32,
+) {
+    let t = old.val();
+    *slot = Some(burn::module::Param::from_tensor(t.ones_like() * value));
 }
 
 /// Size of the 2D blending U-Net.

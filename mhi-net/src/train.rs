@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use burn::config::Config;
+use burn::grad_clipping::GradientClippingConfig;
 use burn::module::Module;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, Tensor, TensorData};
@@ -20,6 +21,9 @@ use serde::{Deserialize, Serialize};
 use crate::Error;
 use crate::loss::{LOSS_NAME, photometric};
 use crate::nets::{BlendNet, BlendNetConfig, Stage1, Stage1Config, UNet3dConfig};
+
+/// Norm to which gradients are clipped by default.
+pub const GRAD_CLIP_NORM: f32 = 1.0;
 
 /// Everything that defines a training run; saved as `config.json` in the run directory.
 #[derive(Config, Debug)]
@@ -71,7 +75,10 @@ impl TrainConfig {
         TrainConfig::new(
             Stage1Config::new(UNet3dConfig::new(), normals),
             BlendNetConfig::new(normals),
-            AdamConfig::new(),
+            // Guard: gradients are clipped to norm 1, so a stiff step (high learning rate,
+            // saturated alphas, a degenerate target) cannot throw the weights to infinity.
+            AdamConfig::new()
+                .with_grad_clipping(Some(GradientClippingConfig::Norm(GRAD_CLIP_NORM))),
         )
     }
 
@@ -355,6 +362,10 @@ impl Trainer {
     pub fn stage1(&self) -> &Stage1 {
         &self.stage1
     }
+    /// Replace the stage-1 networks (e.g. with saturated alphas for a stress test).
+    pub fn set_stage1(&mut self, stage1: Stage1) {
+        self.stage1 = stage1;
+    }
     /// The blending network.
     pub fn blend_net(&self) -> &BlendNet {
         &self.blend
@@ -371,6 +382,12 @@ impl Trainer {
             let Some(t) = sample_training_triplet(seq, &mut rng) else {
                 continue;
             };
+            mhi_data::check_same_size(&[
+                &seq.frames[t.reference],
+                &seq.frames[t.source],
+                &seq.frames[t.target],
+            ])
+            .map_err(|e| Error::Data(Box::new(e)))?;
             let size = Some((self.config.width, self.config.height));
             let load = |i: usize| {
                 load_frame(&seq.frames[i], size, Fit::Stretch).map_err(|e| Error::Data(Box::new(e)))
@@ -388,14 +405,20 @@ impl Trainer {
 
     /// Take one training step (phase 1 or 2 by the step index) and log it.
     pub fn step(&mut self) -> crate::Result<StepReport> {
+        let t0 = Instant::now();
+        let sample = self.sample(self.step)?;
+        self.step_with(sample, t0)
+    }
+
+    /// Take one training step on a given sample (`t0` is when its loading began, for the time
+    /// split).
+    pub fn step_with(&mut self, sample: Sample, t0: Instant) -> crate::Result<StepReport> {
         let step = self.step;
         let phase = if step < self.config.phase1_steps {
             1
         } else {
             2
         };
-        let t0 = Instant::now();
-        let sample = self.sample(step)?;
         let volume = self.cost_volume(&sample)?;
         let mut times = StepTimes {
             volume_ms: ms(t0),

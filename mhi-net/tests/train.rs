@@ -162,3 +162,53 @@ fn initial_weights_depend_on_the_seed_alone_and_checkpoints_round_trip() {
         .fold(0.0, f32::max);
     assert_eq!(diff, 0.0, "a checkpoint does not restore the weights");
 }
+
+/// Stiff settings: 200 steps at lr 1e-2 with every alpha starting saturated (head bias 12, α ≈
+/// 0.999994) and every fifth step a target camera sitting exactly on the nearest fronto plane.
+/// Guards that keep it finite: gradient clipping to norm 1 (checked below), the SSIM constants
+/// C1, C2 > 0, the plane-visibility mask of the warp, and the loss check that refuses to step on a
+/// non-finite loss.
+#[test]
+fn stiff_training_stays_finite() {
+    let d = tempfile::tempdir().unwrap();
+    data(d.path());
+    let mut config = tiny(160, 40);
+    config.lr = 1e-2;
+    config.checkpoint_every = 1000;
+    let device = Device::flex().autodiff();
+    assert!(
+        format!("{:?}", config.optimizer).contains("Norm(1.0)"),
+        "gradient clipping is off: {:?}",
+        config.optimizer
+    );
+    let mut t = Trainer::new(config, &d.path().join("run"), d.path(), device).unwrap();
+    let saturated = t.stage1().clone().with_head_bias(12.0);
+    t.set_stage1(saturated);
+    let mut losses = Vec::new();
+    while !t.finished() {
+        let k = t.step_index();
+        let start = std::time::Instant::now();
+        let r = if k % 5 == 4 {
+            let mut s = t.sample(k).unwrap();
+            // Target centre on the nearest fronto plane (depth `near` in the reference frame).
+            let ref_pose = s.reference.camera.cam_from_world;
+            let on_plane = mhi_geom::RigidTransform::new(
+                glam::DMat3::IDENTITY,
+                glam::DVec3::new(0.0, 0.0, -1.0),
+            )
+            .unwrap();
+            s.target.camera.cam_from_world = on_plane.compose(&ref_pose);
+            t.step_with(s, start).unwrap()
+        } else {
+            t.step().unwrap()
+        };
+        assert!(r.loss.is_finite() && r.psnr.is_finite(), "step {k}: {r:?}");
+        losses.push(r.loss);
+    }
+    assert_eq!(losses.len(), 200);
+    let out = outputs(&t);
+    assert!(
+        out.iter().all(|v| v.is_finite()),
+        "weights became non-finite"
+    );
+}

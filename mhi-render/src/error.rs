@@ -13,7 +13,7 @@ pub enum Error {
     #[error("invalid input: {0}")]
     InvalidInput(String),
     /// Geometry refused by `mhi-geom`.
-    #[error("{context}: {source}")]
+    #[error("{context}")]
     Geometry {
         /// What was being built.
         context: String,

@@ -38,6 +38,7 @@ mod error;
 mod mhi;
 mod oracle;
 pub mod reference;
+pub mod stability;
 mod sweep;
 
 pub use cpu::{

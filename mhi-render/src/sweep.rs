@@ -227,6 +227,14 @@ pub fn sweep_mhi(
             "reference image and camera sizes differ".into(),
         ));
     }
+    // With no baseline every plane warps the source identically: the sweep has no parallax to
+    // measure and would return an arbitrary depth.
+    let baseline = (reference.center_in_world() - source.center_in_world()).length();
+    if !(baseline > 1e-9 * depths.iter().cloned().fold(1.0, f64::max)) {
+        return Err(Error::InvalidInput(format!(
+            "zero baseline: the reference and source cameras are {baseline:e} apart, so the plane sweep has no parallax; choose views taken from different places"
+        )));
+    }
     if !(cfg.temperature > 0.0) {
         return Err(Error::InvalidInput(format!(
             "sweep temperature must be > 0, got {}",

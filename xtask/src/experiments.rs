@@ -454,6 +454,11 @@ pub fn sweep(a: &SweepArgs) -> anyhow::Result<()> {
             );
         }
     }
+    mhi_data::check_same_size(&[
+        &seq.frames[a.reference],
+        &seq.frames[a.src],
+        &seq.frames[a.target],
+    ])?;
     let load = |i: usize| load_frame(&seq.frames[i], Some(a.size), Fit::Stretch);
     let (rf, sf, tf) = (load(a.reference)?, load(a.src)?, load(a.target)?);
     let normals = if a.normals == 5 {

@@ -4,6 +4,7 @@ mod bench;
 mod data;
 mod experiments;
 mod progress;
+mod stability;
 mod train;
 
 use clap::Parser;
@@ -33,6 +34,10 @@ enum Task {
     /// `--normals 1` trains the MPI baseline with the same code. Checkpoints are atomic and
     /// `--resume` continues exactly where a run stopped.
     Train(train::TrainArgs),
+    /// Check numerical stability: the f32 renderer against the f64 reference on extreme cases
+    /// (tiny and huge rotations and translations, planes edge-on or through the camera, 1x1 to
+    /// 2048x2048 images, N = 1..9, D = 1..256); fails on any NaN/Inf or error above the bound.
+    Stability(stability::StabilityArgs),
 }
 
 fn main() {
@@ -43,6 +48,7 @@ fn main() {
         Task::Sweep(a) => experiments::sweep(&a),
         Task::Bench(a) => bench::bench(&a),
         Task::Train(a) => train::train(&a),
+        Task::Stability(a) => stability::stability(&a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

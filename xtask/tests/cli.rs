@@ -1,0 +1,361 @@
+//! Bad input through the command line: every case exits non-zero with a one-paragraph error that
+//! names the file and the fault, never panics, and leaves existing outputs intact. Plus a
+//! training process killed mid-run and resumed.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use mhi_data::{SynthConfig, generate};
+
+fn xtask(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_xtask"))
+        .args(args)
+        .output()
+        .expect("xtask runs")
+}
+
+/// Run, expect failure, and return stderr after checking it is a clean error.
+fn fails(args: &[&str]) -> String {
+    let out = xtask(args);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        !out.status.success(),
+        "{args:?} succeeded: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+    assert!(err.starts_with("error: "), "{args:?}: {err}");
+    err
+}
+
+fn dataset(dir: &Path) -> PathBuf {
+    let config = SynthConfig {
+        scenes: 2,
+        frames: 4,
+        width: 32,
+        height: 24,
+        seed: 3,
+        test_fraction: 0.5,
+        ..SynthConfig::default()
+    };
+    generate(&config, dir, &|| {}).unwrap();
+    dir.to_path_buf()
+}
+
+fn first_frame(root: &Path) -> PathBuf {
+    let seq = root.join("test/scene_00001");
+    let mut v: Vec<PathBuf> = std::fs::read_dir(&seq)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "png"))
+        .collect();
+    v.sort();
+    v[0].clone()
+}
+
+fn sweep_args<'a>(root: &'a str, out: &'a str) -> Vec<&'a str> {
+    vec![
+        "sweep", "--data", root, "--ref", "0", "--src", "2", "--target", "1", "--size", "32x24",
+        "--planes", "4", "--out", out,
+    ]
+}
+
+#[test]
+fn sweep_runs_on_good_data() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let out = d.path().join("out");
+    let o = xtask(&sweep_args(root.to_str().unwrap(), out.to_str().unwrap()));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.join("sweep_render.png").is_file());
+}
+
+#[test]
+fn truncated_png() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let f = first_frame(&root);
+    let bytes = std::fs::read(&f).unwrap();
+    std::fs::write(&f, &bytes[..bytes.len() / 2]).unwrap();
+    let out = d.path().join("out");
+    let err = fails(&sweep_args(root.to_str().unwrap(), out.to_str().unwrap()));
+    assert!(
+        err.contains(&*f.to_string_lossy()) && err.contains("cannot decode"),
+        "{err}"
+    );
+}
+
+#[test]
+fn jpeg_with_png_extension() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let f = first_frame(&root);
+    let img = image::open(&f).unwrap();
+    img.save_with_format(&f, image::ImageFormat::Jpeg).unwrap();
+    let err = fails(&sweep_args(
+        root.to_str().unwrap(),
+        d.path().join("o").to_str().unwrap(),
+    ));
+    assert!(
+        err.contains(&*f.to_string_lossy()) && err.contains("Jpeg") && err.contains("rename"),
+        "{err}"
+    );
+}
+
+fn corrupt_camera(root: &Path, find: &str, replace: &str) {
+    let cam = root.join("test/scene_00001.txt");
+    let text = std::fs::read_to_string(&cam).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    lines[2] = lines[2].replacen(find, replace, 1);
+    std::fs::write(&cam, lines.join("\n") + "\n").unwrap();
+}
+
+#[test]
+fn camera_file_with_nan() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    corrupt_camera(&root, " 0.000000000 ", " nan ");
+    let err = fails(&sweep_args(
+        root.to_str().unwrap(),
+        d.path().join("o").to_str().unwrap(),
+    ));
+    assert!(
+        err.contains("scene_00001.txt:3:") && err.contains("not finite"),
+        "{err}"
+    );
+}
+
+#[test]
+fn rotation_that_is_not_a_rotation() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let cam = root.join("test/scene_00001.txt");
+    let text = std::fs::read_to_string(&cam).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    let mut t: Vec<String> = lines[2].split(' ').map(str::to_owned).collect();
+    t[7] = "1.5".into(); // r11
+    lines[2] = t.join(" ");
+    std::fs::write(&cam, lines.join("\n") + "\n").unwrap();
+    let err = fails(&sweep_args(
+        root.to_str().unwrap(),
+        d.path().join("o").to_str().unwrap(),
+    ));
+    assert!(
+        err.contains("scene_00001.txt:3:") && err.contains("not a rotation"),
+        "{err}"
+    );
+}
+
+#[test]
+fn frames_of_different_sizes() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let f = first_frame(&root);
+    image::DynamicImage::ImageRgb8(image::RgbImage::new(16, 12))
+        .save(&f)
+        .unwrap();
+    let err = fails(&sweep_args(
+        root.to_str().unwrap(),
+        d.path().join("o").to_str().unwrap(),
+    ));
+    assert!(
+        err.contains("differ in size") && err.contains("16x12"),
+        "{err}"
+    );
+}
+
+#[test]
+fn zero_baseline_pair() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let r = root.to_str().unwrap();
+    let o = d.path().join("o");
+    let err = fails(&[
+        "sweep",
+        "--data",
+        r,
+        "--ref",
+        "1",
+        "--src",
+        "1",
+        "--target",
+        "2",
+        "--size",
+        "32x24",
+        "--planes",
+        "4",
+        "--out",
+        o.to_str().unwrap(),
+    ]);
+    assert!(err.contains("zero baseline"), "{err}");
+}
+
+#[test]
+fn missing_directory() {
+    let err = fails(&["sweep", "--data", "/nonexistent/dataset"]);
+    assert!(
+        err.contains("/nonexistent/dataset/test") && err.contains("no such split directory"),
+        "{err}"
+    );
+    let err = fails(&["triplets", "--data", "/nonexistent/dataset"]);
+    assert!(err.contains("no such split directory"), "{err}");
+}
+
+#[test]
+fn unwritable_output_directory() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let err = fails(&sweep_args(root.to_str().unwrap(), "/proc/mhi-out"));
+    assert!(err.contains("/proc/mhi-out"), "{err}");
+    let err = fails(&[
+        "synth",
+        "--out",
+        "/proc/mhi-synth",
+        "--scenes",
+        "1",
+        "--frames",
+        "3",
+        "--size",
+        "8x8",
+    ]);
+    assert!(err.contains("/proc/mhi-synth"), "{err}");
+}
+
+#[test]
+fn existing_outputs_are_not_overwritten() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let f = first_frame(&root);
+    let before = std::fs::read(&f).unwrap();
+    let err = fails(&[
+        "synth",
+        "--out",
+        root.to_str().unwrap(),
+        "--scenes",
+        "1",
+        "--frames",
+        "3",
+        "--size",
+        "8x8",
+    ]);
+    assert!(err.contains("--overwrite"), "{err}");
+    assert_eq!(
+        std::fs::read(&f).unwrap(),
+        before,
+        "an existing frame was changed"
+    );
+}
+
+fn train_args<'a>(run: &'a str, data: &'a str, p1: &'a str) -> Vec<&'a str> {
+    vec![
+        "train",
+        "--run",
+        run,
+        "--data",
+        data,
+        "--normals",
+        "2",
+        "--planes",
+        "2",
+        "--size",
+        "16x16",
+        "--width",
+        "2",
+        "--blend-width",
+        "2",
+        "--phase1-steps",
+        p1,
+        "--phase2-steps",
+        "2",
+        "--checkpoint-every",
+        "1",
+        "--eval-samples",
+        "1",
+    ]
+}
+
+#[test]
+fn checkpoint_from_another_configuration_and_existing_run() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let run = d.path().join("run");
+    let (r, data) = (run.to_str().unwrap(), root.to_str().unwrap());
+    let o = xtask(&train_args(r, data, "2"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // Starting again in the same directory is refused; the run is untouched.
+    let log = std::fs::read(run.join("log.csv")).unwrap();
+    let err = fails(&train_args(r, data, "2"));
+    assert!(
+        err.contains("already holds a training run") && err.contains("--resume"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(run.join("log.csv")).unwrap(), log);
+    // A config edited to another width no longer matches the checkpoint.
+    let cfg = run.join("config.json");
+    let text = std::fs::read_to_string(&cfg)
+        .unwrap()
+        .replacen("\"width\": 2", "\"width\": 4", 1);
+    std::fs::write(&cfg, text).unwrap();
+    let err = fails(&["train", "--run", r, "--data", data, "--resume"]);
+    assert!(err.contains("stage1.bpk"), "{err}");
+}
+
+#[test]
+fn killed_training_resumes_from_its_last_checkpoint() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let run = d.path().join("run");
+    let (r, data) = (run.to_str().unwrap(), root.to_str().unwrap());
+    let mut child = Command::new(env!("CARGO_BIN_EXE_xtask"))
+        .args(train_args(r, data, "400"))
+        .spawn()
+        .unwrap();
+    // Wait for a few checkpoints, then kill the process outright.
+    let latest = run.join("latest.json");
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    loop {
+        let step = std::fs::read_to_string(&latest)
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            .and_then(|v| v["step"].as_u64());
+        if step.is_some_and(|s| s >= 3) {
+            break;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no checkpoint within 120 s"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let killed_at: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&latest).unwrap()).unwrap();
+    let resumed_from = killed_at["step"].as_u64().unwrap();
+    assert!(
+        resumed_from < 402,
+        "the run finished before it could be killed"
+    );
+    // Resume with a small phase 1 left: edit the step budget so the test stays short.
+    let cfg = run.join("config.json");
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cfg).unwrap()).unwrap();
+    v["phase1_steps"] = serde_json::json!(resumed_from + 2);
+    std::fs::write(&cfg, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    let o = xtask(&["train", "--run", r, "--data", data, "--resume"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let log = std::fs::read_to_string(run.join("log.csv")).unwrap();
+    let steps: Vec<u64> = log
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap().parse().unwrap())
+        .collect();
+    let expected: Vec<u64> = (0..resumed_from + 4).collect();
+    assert_eq!(
+        steps, expected,
+        "log steps are not contiguous after the resume"
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["steps"].as_u64(), Some(resumed_from + 4));
+}

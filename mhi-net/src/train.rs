@@ -253,12 +253,12 @@ impl Trainer {
             .stage1
             .init(&device)
             .try_load_file(load("stage1"))
-            .map_err(|e| Error::Checkpoint(format!("{}: {e}", load("stage1").display())))?;
+            .map_err(|e| record_error(&load("stage1"), &e))?;
         let blend = config
             .blend
             .init(&device)
             .try_load_file(load("blend"))
-            .map_err(|e| Error::Checkpoint(format!("{}: {e}", load("blend").display())))?;
+            .map_err(|e| record_error(&load("blend"), &e))?;
         let state_path = ck.join("state.json");
         let state: CheckpointState = serde_json::from_str(
             &std::fs::read_to_string(&state_path).map_err(|e| io(&state_path, e))?,
@@ -696,6 +696,25 @@ pub const CSV_HEADER: &str =
 struct CheckpointState {
     step: usize,
     elapsed_s: f64,
+}
+
+/// A checkpoint that cannot be applied, in one paragraph: the first mismatching parameter and how
+/// many others there are (burn lists every one).
+fn record_error(path: &Path, e: &burn::store::RecordError) -> Error {
+    let text = e.to_string();
+    let items: Vec<&str> = text
+        .split_once('[')
+        .map(|(_, rest)| rest.trim_end_matches(']').split("\", \"").collect())
+        .unwrap_or_default();
+    let msg = match items.as_slice() {
+        [first, rest @ ..] if text.contains("mismatch") => format!(
+            "does not match this run's config.json ({} parameter(s) differ; first: {}); was config.json edited, or does the checkpoint come from another run?",
+            rest.len() + 1,
+            first.trim_matches('"')
+        ),
+        _ => text,
+    };
+    Error::Checkpoint(format!("{}: {msg}", path.display()))
 }
 
 /// burn draws initial weights lazily from one process-wide RNG, so two models built in parallel

@@ -17,8 +17,10 @@
 //! assert_eq!(weights.dims(), [1, 2, 8, 8]);
 //! ```
 
+pub mod backbone;
 pub mod loss;
 mod nets;
+pub mod pickle;
 mod train;
 
 pub use nets::{BlendNet, BlendNetConfig, Stage1, Stage1Config, UNet3d, UNet3dConfig};

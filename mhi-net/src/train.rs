@@ -446,15 +446,7 @@ impl Trainer {
         } else {
             let (_, mni) = render_shared(alpha.detach(), color, &geom, soft.clone());
             let mni = mni.detach();
-            let input = Tensor::cat(
-                vec![
-                    mni.clone().reshape([1, 3 * n, h, w]),
-                    soft.reshape([1, n, h, w]),
-                ],
-                1,
-            );
-            let weights = self.blend.forward(input).reshape([n, 1, h, w]);
-            let image = mhi_render::diff::blend(mni, weights);
+            let image = self.learned_blend(mni, soft);
             times.render_ms = ms(t2);
             let t3 = Instant::now();
             let loss = photometric(image.clone(), target.clone());
@@ -491,6 +483,23 @@ impl Trainer {
             self.checkpoint()?;
         }
         Ok(report)
+    }
+
+    /// Stage 2: the blending network's weights applied to the multi-normal images.
+    ///
+    /// # Shapes
+    /// `mni`: `[N, 3, H, W]`, `soft`: `[N, 1, H, W]` → `[1, 3, H, W]`
+    fn learned_blend(&self, mni: Tensor<4>, soft: Tensor<4>) -> Tensor<4> {
+        let [n, _, h, w] = mni.dims();
+        let input = Tensor::cat(
+            vec![
+                mni.clone().reshape([1, 3 * n, h, w]),
+                soft.reshape([1, n, h, w]),
+            ],
+            1,
+        );
+        let weights = self.blend.forward(input).reshape([n, 1, h, w]);
+        mhi_render::diff::blend(mni, weights)
     }
 
     /// The constant tensors of rendering a sample: warp grids, reference colour, Soft weights
@@ -665,15 +674,7 @@ impl Trainer {
                 target,
             } = self.render_inputs(&s)?;
             let (soft_img, mni) = render_shared(alpha, color, &geom, soft.clone());
-            let input = Tensor::cat(
-                vec![
-                    mni.clone().reshape([1, 3 * n, h, w]),
-                    soft.reshape([1, n, h, w]),
-                ],
-                1,
-            );
-            let weights = self.blend.forward(input).reshape([n, 1, h, w]);
-            let img = mhi_render::diff::blend(mni, weights);
+            let img = self.learned_blend(mni, soft);
             learned += f64::from(psnr_of(img.detach(), target.clone(), false, 1)?);
             soft_sum += f64::from(psnr_of(soft_img.detach(), target, false, 1)?);
         }

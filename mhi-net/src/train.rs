@@ -485,6 +485,20 @@ impl Trainer {
         Ok(report)
     }
 
+    /// Stage 1's alphas for a sample, outside the autodiff graph.
+    ///
+    /// # Shapes
+    /// returns `[N·D, 1, H, W]`
+    fn frozen_alphas(&self, s: &Sample) -> crate::Result<Tensor<4>> {
+        let (n, d) = (self.normals.len(), self.depths.len());
+        let (w, h) = (self.config.width as usize, self.config.height as usize);
+        Ok(self
+            .stage1
+            .forward(self.cost_volume(s)?)
+            .reshape([n * d, 1, h, w])
+            .detach())
+    }
+
     /// Stage 2: the blending network's weights applied to the multi-normal images.
     ///
     /// # Shapes
@@ -635,13 +649,9 @@ impl Trainer {
     /// The phase-1 loss (mean over normals) on the training sample of `step`, without training.
     pub fn phase1_loss(&self, step: usize) -> crate::Result<f32> {
         let s = self.sample(step)?;
-        let (n, d) = (self.normals.len(), self.depths.len());
+        let n = self.normals.len();
         let (w, h) = (self.config.width as usize, self.config.height as usize);
-        let alpha = self
-            .stage1
-            .forward(self.cost_volume(&s)?)
-            .reshape([n * d, 1, h, w])
-            .detach();
+        let alpha = self.frozen_alphas(&s)?;
         let RenderInputs {
             geom,
             color,
@@ -656,17 +666,10 @@ impl Trainer {
     /// Mean PSNR over `count` deterministic samples drawn after training's range of steps: the
     /// learned blend, and the Soft heuristic on the same stage 1.
     pub fn evaluate(&self, count: usize) -> crate::Result<(f64, f64)> {
-        let (n, d) = (self.normals.len(), self.depths.len());
-        let (w, h) = (self.config.width as usize, self.config.height as usize);
         let (mut learned, mut soft_sum) = (0.0, 0.0);
         for k in 0..count {
             let s = self.sample(1_000_000 + k)?;
-            let volume = self.cost_volume(&s)?;
-            let alpha = self
-                .stage1
-                .forward(volume)
-                .reshape([n * d, 1, h, w])
-                .detach();
+            let alpha = self.frozen_alphas(&s)?;
             let RenderInputs {
                 geom,
                 color,

@@ -1,5 +1,6 @@
-//! Image-quality metrics of view synthesis: PSNR and SSIM on plain `image` types (LPIPS and the
-//! evaluation protocol are not implemented yet: issue #6).
+//! Image-quality metrics of view synthesis (PSNR and SSIM on plain `image` types; LPIPS lives
+//! with the pretrained backbones in `mhi-net`), the aggregation of per-view scores into report
+//! rows and tables ([`report`]), and the report's figures ([`plot`]).
 //!
 //! # Example
 //!
@@ -14,6 +15,8 @@
 //! ```
 
 mod metrics;
+pub mod plot;
+pub mod report;
 
 pub use metrics::{MAX_PSNR, psnr, psnr_masked, ssim};
 

@@ -112,8 +112,22 @@ impl Backbone {
                     path.display()
                 )));
             };
-            let t: Tensor<4> = Tensor::from_data(TensorData::new(data, [kh, kw, ci, co]), device);
-            Ok(t.permute([3, 2, 0, 1]))
+            // Reordered on the host once, so every convolution reads a contiguous kernel.
+            let mut out = vec![0.0_f32; data.len()];
+            for y in 0..kh {
+                for x in 0..kw {
+                    for i in 0..ci {
+                        for o in 0..co {
+                            out[((o * ci + i) * kh + y) * kw + x] =
+                                data[((y * kw + x) * ci + i) * co + o];
+                        }
+                    }
+                }
+            }
+            Ok(Tensor::from_data(
+                TensorData::new(out, [co, ci, kh, kw]),
+                device,
+            ))
         };
         let bias = |name: &str| -> crate::Result<Tensor<1>> {
             let (shape, data) = get(name)?;
@@ -180,12 +194,52 @@ impl Backbone {
         }
     }
 
-    /// LPIPS v0.1 distance of two image batches with values in `[0, 1]`, one value per image.
+    /// VGG16 features at conv1_2, conv2_2, conv3_2, conv4_2 and conv5_2 (after ReLU): the layers
+    /// of Stereo Magnification's perceptual loss (which used VGG19; these are VGG16's
+    /// counterparts), for images in `[0, 1]`. Stops at conv5_2.
     ///
     /// # Shapes
-    /// `[B, 3, H, W]`, `[B, 3, H, W]` → `[B]`
-    pub fn lpips(&self, a: Tensor<4>, b: Tensor<4>) -> Tensor<1> {
-        let device = a.device();
+    /// `[B, 3, H, W]` (H, W ≥ 16) → five `[B, C_l, H_l, W_l]`
+    ///
+    /// # Errors
+    /// [`Error::Config`] for an AlexNet backbone.
+    pub fn perceptual_features(&self, x: Tensor<4>) -> crate::Result<Vec<Tensor<4>>> {
+        if self.net != Net::Vgg16 {
+            return Err(Error::Config(
+                "the perceptual loss needs the VGG16 backbone".into(),
+            ));
+        }
+        let c = &self.convs;
+        let mut x = self.prep(x);
+        let mut out = Vec::with_capacity(5);
+        let blocks: [(&[usize], usize); 5] = [
+            (&[0, 1], 1),
+            (&[2, 3], 3),
+            (&[4, 5], 5),
+            (&[7, 8], 8),
+            (&[10, 11], 11),
+        ];
+        for (b, (convs, tap)) in blocks.iter().enumerate() {
+            if b > 0 {
+                // The previous block's remaining convs (conv3_3, conv4_3) before pooling.
+                if b >= 3 {
+                    x = relu(c[convs[0] - 1].forward(x));
+                }
+                x = pool(x, 2);
+            }
+            for &i in *convs {
+                x = relu(c[i].forward(x));
+                if i == *tap {
+                    out.push(x.clone());
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// LPIPS's input scaling: `[0, 1]` → `[-1, 1]`, then the per-channel shift and scale.
+    fn prep(&self, x: Tensor<4>) -> Tensor<4> {
+        let device = x.device();
         let shift: Tensor<4> = Tensor::from_data(
             TensorData::new(vec![-0.030_f32, -0.088, -0.188], [1, 3, 1, 1]),
             &device,
@@ -194,9 +248,15 @@ impl Backbone {
             TensorData::new(vec![0.458_f32, 0.448, 0.450], [1, 3, 1, 1]),
             &device,
         );
-        // LPIPS takes images in [-1, 1].
-        let prep = |x: Tensor<4>| ((x * 2.0 - 1.0) - shift.clone()) / scale.clone();
-        let (fa, fb) = (self.features(prep(a)), self.features(prep(b)));
+        ((x * 2.0 - 1.0) - shift) / scale
+    }
+
+    /// LPIPS v0.1 distance of two image batches with values in `[0, 1]`, one value per image.
+    ///
+    /// # Shapes
+    /// `[B, 3, H, W]`, `[B, 3, H, W]` → `[B]`
+    pub fn lpips(&self, a: Tensor<4>, b: Tensor<4>) -> Tensor<1> {
+        let (fa, fb) = (self.features(self.prep(a)), self.features(self.prep(b)));
         let mut total: Option<Tensor<4>> = None;
         for ((x, y), lin) in fa.into_iter().zip(fb).zip(&self.lins) {
             let d = (unit(x) - unit(y)).powi_scalar(2);

@@ -19,13 +19,16 @@
 
 pub mod backbone;
 pub mod loss;
+mod model;
 mod nets;
 pub mod pickle;
 mod train;
 
+pub use model::{Model, cost_volume};
 pub use nets::{BlendNet, BlendNetConfig, Stage1, Stage1Config, UNet3d, UNet3dConfig};
 pub use train::{
-    CSV_HEADER, GRAD_CLIP_NORM, Sample, StepReport, StepTimes, TrainConfig, Trainer, init_models,
+    CSV_HEADER, EvalScores, GRAD_CLIP_NORM, Sample, StepReport, StepTimes, TrainConfig, Trainer,
+    VAL_CSV_HEADER, init_models,
 };
 
 /// Why building, training or resuming a model failed.

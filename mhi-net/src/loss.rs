@@ -1,9 +1,11 @@
-//! Training losses: L1 and a differentiable SSIM term.
+//! Training losses: the paper's L1 + VGG perceptual loss, and the L1 + SSIM fallback used when
+//! the pretrained VGG16 weights are absent.
 //!
-//! The paper's loss is L1 plus a VGG-19 perceptual term. The VGG weights come from a registry
-//! package that is not wired in yet, so training uses L1 + SSIM (Monodepth's photometric mix);
-//! the run's `config.json` records which loss was used.
+//! The run's `config.json` records which loss was used.
 
+use std::path::Path;
+
+use crate::backbone::{Backbone, Net};
 use burn::tensor::Tensor;
 use burn::tensor::module::avg_pool2d;
 use burn::tensor::ops::AvgPoolOptions;
@@ -54,8 +56,88 @@ pub fn photometric(a: Tensor<4>, b: Tensor<4>) -> Tensor<1> {
     l1(a.clone(), b.clone()) * 0.15 + ssim_loss(a, b) * 0.85
 }
 
-/// Name of the loss recorded in a run's config.
-pub const LOSS_NAME: &str = "0.15*L1 + 0.85*(1-SSIM)/2 (VGG perceptual weights not available)";
+/// Name of the fallback loss recorded in a run's config.
+pub const PHOTOMETRIC_NAME: &str = "0.15*L1 + 0.85*(1-SSIM)/2 (VGG16 weights not available)";
+
+/// Name of the perceptual loss recorded in a run's config.
+pub const PERCEPTUAL_NAME: &str =
+    "L1 + 0.226*(conv1_2/2.6 + conv2_2/4.8 + conv3_2/3.7 + conv4_2/5.6 + conv5_2*10/1.5) (VGG16)";
+
+/// Stereo Magnification's weights of the five VGG layers' mean absolute feature differences.
+pub const VGG_LAYER_WEIGHTS: [f32; 5] = [1.0 / 2.6, 1.0 / 4.8, 1.0 / 3.7, 1.0 / 5.6, 10.0 / 1.5];
+
+/// Stereo Magnification compares caffe-VGG features of images in `[0, 255]` and adds the pixel
+/// L1 in the same units; the torchvision VGG16 here sees `(x − mean) / std` with std ≈ 0.226, so
+/// its features are ≈ 255 · 0.226 times smaller. Dividing the paper's total by 255 gives
+/// `L1 + 0.226 · Σ w_l · |Δf_l|` with pixels in `[0, 1]`.
+pub const VGG_FEATURE_SCALE: f32 = 0.226;
+
+/// The loss a training run minimises.
+pub enum TrainLoss {
+    /// L1 + SSIM (no pretrained weights needed).
+    Photometric,
+    /// L1 + VGG16 perceptual term (the paper's loss, with VGG16 for VGG19).
+    Perceptual(Box<Backbone>),
+}
+
+impl TrainLoss {
+    /// The perceptual loss if `DIR/vgg16.safetensors` loads, else the fallback and the reason.
+    pub fn from_weights(
+        dir: Option<&Path>,
+        device: &burn::tensor::Device,
+    ) -> (Self, Option<String>) {
+        let Some(dir) = dir else {
+            return (Self::Photometric, Some("no weights directory given".into()));
+        };
+        match Backbone::load(dir, Net::Vgg16, device) {
+            Ok(b) => (Self::Perceptual(Box::new(b)), None),
+            Err(e) => (Self::Photometric, Some(e.to_string())),
+        }
+    }
+
+    /// Name recorded in `config.json`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Photometric => PHOTOMETRIC_NAME,
+            Self::Perceptual(_) => PERCEPTUAL_NAME,
+        }
+    }
+
+    /// The loss of `output` against `target` (the target carries no gradient). A target batch
+    /// of 1 is compared with every output (its VGG features are computed once).
+    ///
+    /// # Shapes
+    /// `[B, 3, H, W]`, `[B or 1, 3, H, W]` → `[1]`
+    pub fn compute(&self, output: Tensor<4>, target: Tensor<4>) -> crate::Result<Tensor<1>> {
+        match self {
+            Self::Photometric => {
+                let target = target.expand(output.dims());
+                Ok(photometric(output, target))
+            }
+            Self::Perceptual(vgg) => perceptual(vgg, output, target),
+        }
+    }
+}
+
+/// `L1 + 0.226 · Σ_l w_l · mean |f_l(a) − f_l(b)|` over VGG16 conv1_2 … conv5_2 (see
+/// [`VGG_FEATURE_SCALE`], [`VGG_LAYER_WEIGHTS`]); `b` is the target and is detached.
+///
+/// # Errors
+/// [`crate::Error::Config`] if `vgg` is not the VGG16 backbone.
+///
+/// # Shapes
+/// `[B, 3, H, W]` (H, W ≥ 16), `[B or 1, 3, H, W]` → `[1]`
+pub fn perceptual(vgg: &Backbone, a: Tensor<4>, b: Tensor<4>) -> crate::Result<Tensor<1>> {
+    let b = b.detach();
+    let mut total = l1(a.clone(), b.clone().expand(a.dims()));
+    let fa = vgg.perceptual_features(a)?;
+    let fb = vgg.perceptual_features(b)?;
+    for ((x, y), w) in fa.into_iter().zip(fb).zip(VGG_LAYER_WEIGHTS) {
+        let y = y.detach().expand(x.dims());
+        total = total + l1(x, y) * (w * VGG_FEATURE_SCALE);
+    }
+    Ok(total)
+}
 
 #[cfg(test)]
 mod tests {

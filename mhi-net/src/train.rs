@@ -9,17 +9,16 @@ use burn::config::Config;
 use burn::grad_clipping::GradientClippingConfig;
 use burn::module::Module;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Device, Tensor};
 use mhi_data::{Dataset, Fit, LoadedFrame, Sequence, load_frame, sample_training_triplet};
 use mhi_geom::{BlendHeuristic, NormalSet, depths_linear_in_disparity};
 use mhi_render::diff::{WarpGeometry, heuristic_weights_tensor, image_to_tensor, render_shared};
-use mhi_render::plane_sweep_volume;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::Error;
-use crate::loss::{LOSS_NAME, photometric};
+use crate::loss::TrainLoss;
 use crate::nets::{BlendNet, BlendNetConfig, Stage1, Stage1Config, UNet3dConfig};
 
 /// Norm to which gradients are clipped by default.
@@ -56,14 +55,17 @@ pub struct TrainConfig {
     #[config(default = 100.0)]
     pub far: f64,
     /// Steps of phase 1 (stage 1 on every multi-normal image).
-    #[config(default = 300)]
+    #[config(default = 160)]
     pub phase1_steps: usize,
     /// Steps of phase 2 (blending network, stage 1 frozen).
-    #[config(default = 150)]
+    #[config(default = 100)]
     pub phase2_steps: usize,
     /// Write a checkpoint every this many steps (and at the end).
     #[config(default = 50)]
     pub checkpoint_every: usize,
+    /// Held-out samples scored at every checkpoint (`val.csv`; 0 turns it off).
+    #[config(default = 4)]
+    pub val_samples: usize,
     /// The loss actually used (filled in by the trainer).
     #[config(default = "String::new()")]
     pub loss: String,
@@ -80,6 +82,17 @@ impl TrainConfig {
             AdamConfig::new()
                 .with_grad_clipping(Some(GradientClippingConfig::Norm(GRAD_CLIP_NORM))),
         )
+    }
+
+    /// Parse a run's `config.json`; runs written before `val_samples` existed get 0 (they
+    /// logged no validation).
+    pub fn from_json(text: &str, path: &Path) -> crate::Result<Self> {
+        let bad = |e: serde_json::Error| Error::Config(format!("{}: {e}", path.display()));
+        let mut v: serde_json::Value = serde_json::from_str(text).map_err(bad)?;
+        if let Some(o) = v.as_object_mut() {
+            o.entry("val_samples").or_insert(serde_json::json!(0));
+        }
+        serde_json::from_value(v).map_err(bad)
     }
 
     /// Total number of steps of both phases.
@@ -156,9 +169,9 @@ pub struct StepReport {
 
 /// The checkpoint pointer `latest.json`.
 #[derive(Debug, Clone, Serialize, Deserialize)]
-struct Latest {
-    step: usize,
-    dir: String,
+pub(crate) struct Latest {
+    pub(crate) step: usize,
+    pub(crate) dir: String,
 }
 
 /// One training sample: the three views at the training size.
@@ -183,6 +196,7 @@ pub struct Trainer {
     blend: BlendNet,
     opt1: ModuleOptimizer,
     opt2: ModuleOptimizer,
+    loss: TrainLoss,
     step: usize,
     started: Instant,
     elapsed_before: f64,
@@ -201,11 +215,12 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> crate::Result<()> {
 
 impl Trainer {
     /// Start a new run in `dir` (which must not hold a run yet) on the sequences of
-    /// `data_root/train`.
+    /// `data_root/train`, minimising `loss` (its name is recorded in `config.json`).
     pub fn new(
         mut config: TrainConfig,
         dir: &Path,
         data_root: &Path,
+        loss: TrainLoss,
         device: Device,
     ) -> crate::Result<Self> {
         config.validate()?;
@@ -216,7 +231,7 @@ impl Trainer {
             )));
         }
         std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
-        config.loss = LOSS_NAME.into();
+        config.loss = loss.name().into();
         write_atomic(
             &dir.join("config.json"),
             serde_json::to_string_pretty(&config)
@@ -224,17 +239,37 @@ impl Trainer {
                 .as_bytes(),
         )?;
         write_atomic(&dir.join("log.csv"), CSV_HEADER.as_bytes())?;
+        write_atomic(&dir.join("val.csv"), VAL_CSV_HEADER.as_bytes())?;
         let (stage1, blend) = init_models(&config, &device);
-        Self::assemble(config, dir, data_root, device, stage1, blend, 0, 0.0)
+        Self::assemble(config, dir, data_root, device, stage1, blend, loss, 0, 0.0)
     }
 
-    /// Continue the run in `dir` from its latest checkpoint.
-    pub fn resume(dir: &Path, data_root: &Path, device: Device) -> crate::Result<Self> {
+    /// Continue the run in `dir` from its latest checkpoint, with the loss its `config.json`
+    /// names (the perceptual loss needs `weights/vgg16.safetensors`).
+    pub fn resume(
+        dir: &Path,
+        data_root: &Path,
+        weights: Option<&Path>,
+        device: Device,
+    ) -> crate::Result<Self> {
         let cfg_path = dir.join("config.json");
         let text = std::fs::read_to_string(&cfg_path).map_err(|e| io(&cfg_path, e))?;
-        let config: TrainConfig = serde_json::from_str(&text)
-            .map_err(|e| Error::Config(format!("{}: {e}", cfg_path.display())))?;
+        let config: TrainConfig = TrainConfig::from_json(&text, &cfg_path)?;
         config.validate()?;
+        let loss = if config.loss == crate::loss::PERCEPTUAL_NAME {
+            match TrainLoss::from_weights(weights, &device) {
+                (l @ TrainLoss::Perceptual(_), _) => l,
+                (_, why) => {
+                    return Err(Error::Config(format!(
+                        "{}: the run trains with the VGG16 perceptual loss, but its weights cannot be loaded ({}); run `cargo xtask weights`",
+                        cfg_path.display(),
+                        why.unwrap_or_default()
+                    )));
+                }
+            }
+        } else {
+            TrainLoss::Photometric
+        };
         let latest_path = dir.join("latest.json");
         let latest: Latest = match std::fs::read_to_string(&latest_path) {
             Ok(t) => serde_json::from_str(&t)
@@ -271,6 +306,7 @@ impl Trainer {
             device,
             stage1,
             blend,
+            loss,
             latest.step,
             state.elapsed_s,
         )?;
@@ -284,22 +320,28 @@ impl Trainer {
             .clone()
             .load(load("opt2"))
             .map_err(|e| Error::Checkpoint(format!("{}: {e}", load("opt2").display())))?;
-        // Drop log rows written after the checkpoint by the interrupted run.
-        let log = dir.join("log.csv");
-        let text = std::fs::read_to_string(&log).unwrap_or_else(|_| CSV_HEADER.into());
-        let kept: String = text
-            .lines()
-            .enumerate()
-            .filter(|(i, l)| {
-                *i == 0
-                    || l.split(',')
-                        .next()
-                        .and_then(|s| s.parse::<usize>().ok())
-                        .is_some_and(|s| s < latest.step)
-            })
-            .map(|(_, l)| format!("{l}\n"))
-            .collect();
-        write_atomic(&log, kept.as_bytes())?;
+        // Drop log rows written after the checkpoint by the interrupted run (a validation row
+        // of step s is written just after the checkpoint of step s).
+        for (name, header, bound) in [
+            ("log.csv", CSV_HEADER, latest.step),
+            ("val.csv", VAL_CSV_HEADER, latest.step + 1),
+        ] {
+            let log = dir.join(name);
+            let text = std::fs::read_to_string(&log).unwrap_or_else(|_| header.into());
+            let kept: String = text
+                .lines()
+                .enumerate()
+                .filter(|(i, l)| {
+                    *i == 0
+                        || l.split(',')
+                            .next()
+                            .and_then(|s| s.parse::<usize>().ok())
+                            .is_some_and(|s| s < bound)
+                })
+                .map(|(_, l)| format!("{l}\n"))
+                .collect();
+            write_atomic(&log, kept.as_bytes())?;
+        }
         Ok(t)
     }
 
@@ -311,6 +353,7 @@ impl Trainer {
         device: Device,
         stage1: Stage1,
         blend: BlendNet,
+        loss: TrainLoss,
         step: usize,
         elapsed_before: f64,
     ) -> crate::Result<Self> {
@@ -336,6 +379,7 @@ impl Trainer {
             blend,
             opt1,
             opt2,
+            loss,
             step,
             started: Instant::now(),
             elapsed_before,
@@ -440,7 +484,7 @@ impl Trainer {
             let (_, mni) = render_shared(alpha, color, &geom, soft);
             times.render_ms = ms(t2);
             let t3 = Instant::now();
-            let loss = photometric(mni.clone(), target.clone().expand([n, 3, h, w]));
+            let loss = self.loss.compute(mni.clone(), target.clone())?;
             times.loss_ms = ms(t3);
             (loss, mni)
         } else {
@@ -449,7 +493,7 @@ impl Trainer {
             let image = self.learned_blend(mni, soft);
             times.render_ms = ms(t2);
             let t3 = Instant::now();
-            let loss = photometric(image.clone(), target.clone());
+            let loss = self.loss.compute(image.clone(), target.clone())?;
             times.loss_ms = ms(t3);
             (loss, image)
         };
@@ -531,39 +575,13 @@ impl Trainer {
     /// The oriented cost volume `[N, 6, D, H, W]`: per normal and plane, the reference image and
     /// the source image warped onto that plane.
     pub fn cost_volume(&self, s: &Sample) -> crate::Result<Tensor<5>> {
-        let psv = plane_sweep_volume(
+        crate::model::cost_volume(
             &self.normals,
             &self.depths,
-            &s.reference.camera,
-            &s.source.image,
-            &s.source.camera,
-        )?;
-        let (n, d) = (self.normals.len(), self.depths.len());
-        let (w, h) = (self.config.width as usize, self.config.height as usize);
-        let px = w * h;
-        let refp = s.reference.image.as_raw();
-        let mut data = vec![0.0_f32; n * 6 * d * px];
-        for i in 0..n {
-            for c in 0..6 {
-                for j in 0..d {
-                    let dst = &mut data[((i * 6 + c) * d + j) * px..((i * 6 + c) * d + j + 1) * px];
-                    if c < 3 {
-                        for (p, v) in dst.iter_mut().enumerate() {
-                            *v = refp[3 * p + c];
-                        }
-                    } else {
-                        let src = psv.plane_rgb(i, j);
-                        for (p, v) in dst.iter_mut().enumerate() {
-                            *v = src[3 * p + c - 3];
-                        }
-                    }
-                }
-            }
-        }
-        Ok(Tensor::from_data(
-            TensorData::new(data, [n, 6, d, h, w]),
+            &s.reference,
+            &s.source,
             &self.device,
-        ))
+        )
     }
 
     fn append_log(&self, r: &StepReport) -> crate::Result<()> {
@@ -643,6 +661,23 @@ impl Trainer {
                 }
             }
         }
+        if self.config.val_samples > 0 {
+            let (learned, soft) = self.evaluate(self.config.val_samples)?;
+            use std::io::Write as _;
+            let path = self.dir.join("val.csv");
+            let mut f = std::fs::OpenOptions::new()
+                .append(true)
+                .create(true)
+                .open(&path)
+                .map_err(|e| io(&path, e))?;
+            writeln!(
+                f,
+                "{},{:.3},{learned:.4},{soft:.4}",
+                self.step,
+                self.elapsed_s()
+            )
+            .map_err(|e| io(&path, e))?;
+        }
         Ok(())
     }
 
@@ -660,7 +695,44 @@ impl Trainer {
         } = self.render_inputs(&s)?;
         let (_, mni) = render_shared(alpha, color, &geom, soft);
         let target = target.expand([n, 3, h, w]);
-        scalar(photometric(mni, target))
+        scalar(self.loss.compute(mni, target)?)
+    }
+
+    /// Mean PSNR, SSIM-loss-free scores and (with `lpips`) LPIPS over `count` deterministic
+    /// held-out samples: the learned blend, and the Soft heuristic on the same stage 1.
+    pub fn evaluate_scores(
+        &self,
+        count: usize,
+        lpips: Option<&crate::backbone::Backbone>,
+    ) -> crate::Result<EvalScores> {
+        let mut e = EvalScores::default();
+        for k in 0..count {
+            let s = self.sample(1_000_000 + k)?;
+            let alpha = self.frozen_alphas(&s)?;
+            let RenderInputs {
+                geom,
+                color,
+                soft,
+                target,
+            } = self.render_inputs(&s)?;
+            let (soft_img, mni) = render_shared(alpha, color, &geom, soft.clone());
+            let img = self.learned_blend(mni, soft).detach();
+            let soft_img = soft_img.detach();
+            e.psnr_learned += f64::from(psnr_of(img.clone(), target.clone(), false, 1)?);
+            e.psnr_soft += f64::from(psnr_of(soft_img.clone(), target.clone(), false, 1)?);
+            if let Some(net) = lpips {
+                let l = scalar(net.lpips(img.clamp(0.0, 1.0), target.clone()).mean())?;
+                let ls = scalar(net.lpips(soft_img.clamp(0.0, 1.0), target).mean())?;
+                *e.lpips_learned.get_or_insert(0.0) += f64::from(l);
+                *e.lpips_soft.get_or_insert(0.0) += f64::from(ls);
+            }
+        }
+        let k = count.max(1) as f64;
+        e.psnr_learned /= k;
+        e.psnr_soft /= k;
+        e.lpips_learned = e.lpips_learned.map(|v| v / k);
+        e.lpips_soft = e.lpips_soft.map(|v| v / k);
+        Ok(e)
     }
 
     /// Mean PSNR over `count` deterministic samples drawn after training's range of steps: the
@@ -685,6 +757,19 @@ impl Trainer {
     }
 }
 
+/// Held-out scores of a model (see [`Trainer::evaluate_scores`]).
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
+pub struct EvalScores {
+    /// PSNR (dB) of the learned blend.
+    pub psnr_learned: f64,
+    /// PSNR (dB) of the Soft heuristic on the same stage 1.
+    pub psnr_soft: f64,
+    /// LPIPS-alex of the learned blend, when the weights were given.
+    pub lpips_learned: Option<f64>,
+    /// LPIPS-alex of the Soft heuristic.
+    pub lpips_soft: Option<f64>,
+}
+
 struct RenderInputs {
     geom: WarpGeometry,
     color: Tensor<4>,
@@ -696,6 +781,9 @@ struct RenderInputs {
 pub const CSV_HEADER: &str =
     "step,phase,loss,psnr,elapsed_s,volume_ms,stage1_ms,render_ms,loss_ms,backward_ms\n";
 
+/// Header of `val.csv`: held-out PSNR (learned blend, Soft on stage 1) at each checkpoint.
+pub const VAL_CSV_HEADER: &str = "step,elapsed_s,psnr_learned,psnr_soft\n";
+
 #[derive(Debug, Clone, Serialize, Deserialize)]
 struct CheckpointState {
     step: usize,
@@ -704,7 +792,7 @@ struct CheckpointState {
 
 /// A checkpoint that cannot be applied, in one paragraph: the first mismatching parameter and how
 /// many others there are (burn lists every one).
-fn record_error(path: &Path, e: &burn::store::RecordError) -> Error {
+pub(crate) fn record_error(path: &Path, e: &burn::store::RecordError) -> Error {
     let text = e.to_string();
     let items: Vec<&str> = text
         .split_once('[')

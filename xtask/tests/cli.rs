@@ -268,6 +268,10 @@ fn train_args<'a>(run: &'a str, data: &'a str, p1: &'a str) -> Vec<&'a str> {
         "1",
         "--eval-samples",
         "1",
+        "--val-samples",
+        "1",
+        "--loss",
+        "photometric",
     ]
 }
 

@@ -1,0 +1,302 @@
+//! The report's figures with plotters: error against time per view with its Pareto front, and
+//! validation PSNR against training time. Each is written as SVG and PNG; text is drawn with the
+//! bundled DejaVu Sans Mono, so no system font is needed.
+
+use std::path::Path;
+use std::sync::Once;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::{FontStyle, register_font};
+
+use crate::report::pareto_front;
+
+static FONT: &[u8] = include_bytes!("../assets/DejaVuSansMono.ttf");
+static REGISTER: Once = Once::new();
+
+fn fonts() {
+    REGISTER.call_once(|| {
+        // The bundled font is valid; registration cannot fail for it.
+        let _ = register_font("sans-serif", FontStyle::Normal, FONT);
+    });
+}
+
+/// Why a figure could not be drawn or written.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct PlotError {
+    /// The file being written.
+    pub path: String,
+    /// What went wrong.
+    pub message: String,
+}
+
+/// A point of the error-vs-time figure.
+#[derive(Debug, Clone)]
+pub struct TimePoint {
+    /// Method and configuration.
+    pub label: String,
+    /// Milliseconds per novel view.
+    pub ms: f64,
+    /// Quality (PSNR dB, higher is better).
+    pub psnr: f64,
+}
+
+/// A curve of the training figure.
+#[derive(Debug, Clone)]
+pub struct Curve {
+    /// Legend.
+    pub label: String,
+    /// (seconds of training, validation PSNR dB).
+    pub points: Vec<(f64, f64)>,
+}
+
+const SIZE: (u32, u32) = (960, 640);
+const COLORS: [RGBColor; 8] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+];
+
+fn err(path: &Path, e: impl std::fmt::Display) -> PlotError {
+    PlotError {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    }
+}
+
+fn write_png(path: &Path, buf: Vec<u8>) -> Result<(), PlotError> {
+    let img = image::RgbImage::from_raw(SIZE.0, SIZE.1, buf)
+        .ok_or_else(|| err(path, "bitmap of the wrong size"))?;
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| err(path, e))?;
+    mhi_data::write_atomic(path, &bytes).map_err(|e| err(path, e))
+}
+
+/// Draw with `draw` into `stem.svg` and `stem.png` (each written atomically).
+macro_rules! svg_and_png {
+    ($stem:expr, $draw:ident, $($arg:expr),*) => {{
+        let stem: &Path = $stem;
+        let svg_path = stem.with_extension("svg");
+        let png_path = stem.with_extension("png");
+        fonts();
+        let mut svg = String::new();
+        {
+            let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
+            $draw(&root, $($arg),*).map_err(|e| err(&svg_path, e))?;
+            root.present().map_err(|e| err(&svg_path, e))?;
+        }
+        mhi_data::write_atomic(&svg_path, svg.as_bytes()).map_err(|e| err(&svg_path, e))?;
+        let mut buf = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
+        {
+            let root = BitMapBackend::with_buffer(&mut buf, SIZE).into_drawing_area();
+            $draw(&root, $($arg),*).map_err(|e| err(&png_path, e))?;
+            root.present().map_err(|e| err(&png_path, e))?;
+        }
+        write_png(&png_path, buf)
+    }};
+}
+
+fn range(v: impl Iterator<Item = f64> + Clone, pad: f64) -> (f64, f64) {
+    let lo = v.clone().fold(f64::INFINITY, f64::min);
+    let hi = v.fold(f64::NEG_INFINITY, f64::max);
+    if !lo.is_finite() || !hi.is_finite() {
+        return (0.0, 1.0);
+    }
+    let span = (hi - lo).max(1e-6);
+    (lo - pad * span, hi + pad * span)
+}
+
+fn draw_error_vs_time<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    points: &[TimePoint],
+    title: &str,
+) -> Result<(), String> {
+    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    root.fill(&WHITE).map_err(e)?;
+    let (ylo, yhi) = range(points.iter().map(|p| p.psnr), 0.12);
+    let xs = points.iter().map(|p| p.ms.max(1e-3));
+    let xlo = xs.clone().fold(f64::INFINITY, f64::min);
+    let xhi = xs.fold(f64::NEG_INFINITY, f64::max);
+    let (xlo, xhi) = if xlo.is_finite() && xhi.is_finite() {
+        (xlo / 2.0, xhi * 3.0)
+    } else {
+        (0.1, 10.0)
+    };
+    let mut chart = ChartBuilder::on(root)
+        .caption(title, ("sans-serif", 22))
+        .margin(16)
+        .x_label_area_size(44)
+        .y_label_area_size(64)
+        .build_cartesian_2d((xlo..xhi).log_scale(), ylo..yhi)
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("time per novel view (ms, log scale)")
+        .y_desc("PSNR (dB)")
+        .label_style(("sans-serif", 15))
+        .draw()
+        .map_err(e)?;
+    let pts: Vec<(f64, f64)> = points.iter().map(|p| (p.ms.max(1e-3), p.psnr)).collect();
+    let front = pareto_front(&pts, true);
+    chart
+        .draw_series(LineSeries::new(
+            front.iter().map(|&i| pts[i]),
+            ShapeStyle::from(&RGBColor(200, 60, 60)).stroke_width(2),
+        ))
+        .map_err(e)?
+        .label("Pareto front (faster or better than every other point)")
+        .legend(|(x, y)| {
+            PathElement::new(
+                vec![(x, y), (x + 20, y)],
+                ShapeStyle::from(&RGBColor(200, 60, 60)).stroke_width(2),
+            )
+        });
+    for (i, (p, xy)) in points.iter().zip(&pts).enumerate() {
+        let color = COLORS[i % COLORS.len()];
+        let on_front = front.contains(&i);
+        // The label sits up and to the right of its point, or to the left near the right edge.
+        let right_half = xy.0.ln() > (xlo.ln() + xhi.ln()) / 2.0;
+        let dx = if right_half {
+            -10 - 8 * p.label.chars().count() as i32
+        } else {
+            10
+        };
+        chart
+            .draw_series(std::iter::once(
+                EmptyElement::at(*xy)
+                    + Circle::new((0, 0), if on_front { 7 } else { 5 }, color.filled())
+                    + Text::new(
+                        p.label.clone(),
+                        (dx, -16),
+                        ("sans-serif", 14).into_font().color(&color),
+                    ),
+            ))
+            .map_err(e)?;
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .position(SeriesLabelPosition::LowerRight)
+        .draw()
+        .map_err(e)?;
+    Ok(())
+}
+
+fn draw_curves<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    curves: &[Curve],
+    title: &str,
+) -> Result<(), String> {
+    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    root.fill(&WHITE).map_err(e)?;
+    let all = curves.iter().flat_map(|c| c.points.iter().copied());
+    let (_, xhi) = range(all.clone().map(|p| p.0), 0.05);
+    let (ylo, yhi) = range(all.map(|p| p.1), 0.1);
+    let mut chart = ChartBuilder::on(root)
+        .caption(title, ("sans-serif", 22))
+        .margin(16)
+        .x_label_area_size(44)
+        .y_label_area_size(64)
+        .build_cartesian_2d(0.0..xhi.max(1.0), ylo..yhi)
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("wall-clock training time (s)")
+        .y_desc("validation PSNR (dB)")
+        .label_style(("sans-serif", 15))
+        .draw()
+        .map_err(e)?;
+    for (i, c) in curves.iter().enumerate() {
+        let color = COLORS[i % COLORS.len()];
+        chart
+            .draw_series(LineSeries::new(
+                c.points.iter().copied(),
+                ShapeStyle::from(&color).stroke_width(2),
+            ))
+            .map_err(e)?
+            .label(c.label.clone())
+            .legend(move |(x, y)| {
+                PathElement::new(
+                    vec![(x, y), (x + 20, y)],
+                    ShapeStyle::from(&color).stroke_width(2),
+                )
+            });
+        chart
+            .draw_series(c.points.iter().map(|&p| Circle::new(p, 3, color.filled())))
+            .map_err(e)?;
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .position(SeriesLabelPosition::LowerRight)
+        .draw()
+        .map_err(e)?;
+    Ok(())
+}
+
+/// `stem.svg` and `stem.png`: PSNR against milliseconds per view (log scale), one labelled point
+/// per method and configuration, the Pareto front drawn.
+pub fn error_vs_time(stem: &Path, points: &[TimePoint], title: &str) -> Result<(), PlotError> {
+    svg_and_png!(stem, draw_error_vs_time, points, title)
+}
+
+/// `stem.svg` and `stem.png`: validation PSNR against wall-clock training time, one line per
+/// curve.
+pub fn training_curve(stem: &Path, curves: &[Curve], title: &str) -> Result<(), PlotError> {
+    svg_and_png!(stem, draw_curves, curves, title)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn figures_are_written_as_svg_and_png() {
+        let d = tempfile::tempdir().unwrap();
+        let pts = vec![
+            TimePoint {
+                label: "a N=5 D=8".into(),
+                ms: 10.0,
+                psnr: 20.0,
+            },
+            TimePoint {
+                label: "b".into(),
+                ms: 1.0,
+                psnr: 15.0,
+            },
+            TimePoint {
+                label: "c".into(),
+                ms: 30.0,
+                psnr: 18.0,
+            },
+        ];
+        error_vs_time(&d.path().join("e"), &pts, "test").unwrap();
+        let svg = std::fs::read_to_string(d.path().join("e.svg")).unwrap();
+        assert!(svg.contains("a N=5 D=8") && svg.contains("Pareto"));
+        let png = image::open(d.path().join("e.png")).unwrap().to_rgb8();
+        assert_eq!(png.dimensions(), SIZE);
+        // Something besides the white background was drawn, including text pixels.
+        let dark = png.pixels().filter(|p| p.0.iter().all(|&c| c < 80)).count();
+        assert!(dark > 500, "{dark} dark pixels");
+        let curves = vec![Curve {
+            label: "learned".into(),
+            points: vec![(0.0, 10.0), (50.0, 12.0), (100.0, 13.0)],
+        }];
+        training_curve(&d.path().join("t"), &curves, "curve").unwrap();
+        assert!(d.path().join("t.png").is_file() && d.path().join("t.svg").is_file());
+    }
+}

@@ -1,0 +1,125 @@
+//! `cargo xtask bench --train-step`: where a training step of the default model spends its time,
+//! each part timed forward only and forward + backward (median of several runs), on a real
+//! synthetic sample.
+
+use std::path::Path;
+use std::time::Instant;
+
+use burn::tensor::{Device, Distribution, Tensor};
+use mhi_data::{Dataset, Fit, load_frame};
+use mhi_geom::BlendHeuristic;
+use mhi_net::loss::TrainLoss;
+use mhi_net::{TrainConfig, cost_volume, init_models};
+use mhi_render::diff::{WarpGeometry, heuristic_weights_tensor, image_to_tensor, render_shared};
+
+fn median_ms(runs: usize, mut f: impl FnMut()) -> f64 {
+    f();
+    let mut t: Vec<f64> = (0..runs.max(1))
+        .map(|_| {
+            let t0 = Instant::now();
+            f();
+            t0.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    t.sort_by(f64::total_cmp);
+    t[t.len() / 2]
+}
+
+/// Time the parts of one phase-1 step of the default model (N = 5, D = 8, 64×64).
+pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<serde_json::Value> {
+    crate::experiments::ensure_synthetic(data)?;
+    let ds = Dataset::open(data, "train", 3)?;
+    let seq = ds
+        .sequences
+        .first()
+        .ok_or_else(|| anyhow::anyhow!("{}: no training sequence", ds.dir.display()))?;
+    let config = TrainConfig::for_normals(5);
+    let size = Some((config.width, config.height));
+    let load = |i: usize| load_frame(&seq.frames[i], size, Fit::Stretch);
+    let (rf, sf, tf) = (load(0)?, load(3)?, load(6)?);
+    let device = Device::flex().autodiff();
+    let (stage1, _) = init_models(&config, &device);
+    let normals = config.normal_set()?;
+    let depths = mhi_geom::depths_linear_in_disparity(config.near, config.far, config.planes)?;
+    let (n, d) = (normals.len(), depths.len());
+    let (w, h) = (config.width as usize, config.height as usize);
+    let (loss, why) = TrainLoss::from_weights(Some(weights), &device);
+    if let Some(why) = why {
+        eprintln!("note: VGG16 weights unavailable ({why}); timing the L1 + SSIM loss");
+    }
+    let geom = WarpGeometry::new(&normals, &depths, &rf.camera, &tf.camera, &device)?;
+    let color = image_to_tensor(&rf.image, &device);
+    let soft = heuristic_weights_tensor(
+        &normals,
+        &rf.camera,
+        &tf.camera,
+        BlendHeuristic::Soft,
+        &device,
+    );
+    let target = image_to_tensor(&tf.image, &device);
+
+    let volume_ms = median_ms(runs, || {
+        let _ = cost_volume(&normals, &depths, &rf, &sf, &device).map(|v| v.into_data());
+    });
+    let volume = cost_volume(&normals, &depths, &rf, &sf, &device)?;
+    let sync = |t: Tensor<1>| {
+        let _ = t.into_data();
+    };
+    let stage1_fwd = median_ms(runs, || sync(stage1.forward(volume.clone()).mean()));
+    let stage1_both = median_ms(runs, || {
+        let _ = stage1.forward(volume.clone()).mean().backward();
+    });
+    let alpha: Tensor<4> =
+        Tensor::random([n * d, 1, h, w], Distribution::Uniform(0.0, 1.0), &device).require_grad();
+    let warp_fwd = median_ms(runs, || {
+        let (_, mni) = render_shared(alpha.clone(), color.clone(), &geom, soft.clone());
+        sync(mni.mean());
+    });
+    let warp_both = median_ms(runs, || {
+        let (_, mni) = render_shared(alpha.clone(), color.clone(), &geom, soft.clone());
+        let _ = mni.mean().backward();
+    });
+    let mni: Tensor<4> =
+        Tensor::random([n, 3, h, w], Distribution::Uniform(0.0, 1.0), &device).require_grad();
+    let loss_fwd = median_ms(runs, || {
+        if let Ok(l) = loss.compute(mni.clone(), target.clone()) {
+            sync(l);
+        }
+    });
+    let loss_both = median_ms(runs, || {
+        if let Ok(l) = loss.compute(mni.clone(), target.clone()) {
+            let _ = l.backward();
+        }
+    });
+    let rows = [
+        ("cost volume (CPU plane sweep)", volume_ms, volume_ms),
+        ("stage 1 (3D U-Net, conv3d)", stage1_fwd, stage1_both),
+        ("warp + composite (grid_sample)", warp_fwd, warp_both),
+        ("loss", loss_fwd, loss_both),
+    ];
+    let total: f64 = rows.iter().map(|r| r.2).sum();
+    println!(
+        "one phase-1 step, N={n} D={d} {w}x{h}, loss {}, median of {runs} (flex backend, {} threads)",
+        loss.name(),
+        rayon::current_num_threads()
+    );
+    println!(
+        "{:<34} {:>10} {:>12} {:>10} {:>7}",
+        "part", "forward", "fwd+bwd", "backward", "share"
+    );
+    for (name, f, b) in rows {
+        println!(
+            "{name:<34} {f:>8.1}ms {b:>10.1}ms {:>8.1}ms {:>6.1}%",
+            b - f,
+            100.0 * b / total
+        );
+    }
+    println!("{:<34} {:>8} {total:>10.1}ms", "sum", "");
+    Ok(serde_json::json!({
+        "normals": n, "planes": d, "size": [w, h], "loss": loss.name(), "runs": runs,
+        "volume_ms": volume_ms,
+        "stage1_forward_ms": stage1_fwd, "stage1_forward_backward_ms": stage1_both,
+        "warp_forward_ms": warp_fwd, "warp_forward_backward_ms": warp_both,
+        "loss_forward_ms": loss_fwd, "loss_forward_backward_ms": loss_both,
+    }))
+}

@@ -1,0 +1,132 @@
+//! Helpers shared by `eval`, `render` and `demo`: combining multi-normal images, a circular
+//! orbit of cameras, image sheets and animated GIFs.
+
+use std::path::Path;
+
+use anyhow::Context;
+use glam::{DMat3, DVec3};
+use image::{Rgb32FImage, RgbImage, RgbaImage};
+use mhi_geom::{Camera, RigidTransform};
+
+/// `Σ_i w_i · mni_i` per pixel, with `weights` `N × H × W` (normal-major).
+pub fn combine(mni: &[Rgb32FImage], weights: &[f32]) -> Rgb32FImage {
+    let (w, h) = mni[0].dimensions();
+    let px = (w * h) as usize;
+    let mut out = Rgb32FImage::new(w, h);
+    for (i, m) in mni.iter().enumerate() {
+        let wi = &weights[i * px..(i + 1) * px];
+        for ((o, p), &k) in out.pixels_mut().zip(m.pixels()).zip(wi) {
+            for c in 0..3 {
+                o.0[c] += k * p.0[c];
+            }
+        }
+    }
+    out
+}
+
+/// Clamp every channel to [0, 1] (what is shown and scored).
+pub fn clipped(img: &Rgb32FImage) -> Rgb32FImage {
+    let mut o = img.clone();
+    for p in o.pixels_mut() {
+        for c in &mut p.0 {
+            *c = if c.is_finite() {
+                c.clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+        }
+    }
+    o
+}
+
+/// Cameras on a circle of `radius` around the reference camera's centre, in its image plane
+/// (x right, y down), looking the same way: the paper's circular light-field rendering.
+pub fn orbit(reference: &Camera, radius: f64, frames: usize) -> anyhow::Result<Vec<Camera>> {
+    let world_from_ref = reference.cam_from_world.inverse();
+    (0..frames)
+        .map(|k| {
+            let th = std::f64::consts::TAU * k as f64 / frames as f64;
+            let offset_cam = DVec3::new(radius * th.cos(), radius * th.sin(), 0.0);
+            // Same rotation; centre moved by `offset_cam` expressed in the reference frame.
+            let center = world_from_ref.transform_point(offset_cam);
+            let r: DMat3 = reference.cam_from_world.rotation();
+            let pose = RigidTransform::new(r, -(r * center))?;
+            Ok(Camera::new(
+                reference.intrinsics,
+                pose,
+                reference.width,
+                reference.height,
+            )?)
+        })
+        .collect()
+}
+
+/// Nearest-neighbour enlargement by an integer factor (small renders stay readable).
+pub fn enlarge(img: &RgbImage, factor: u32) -> RgbImage {
+    let f = factor.max(1);
+    RgbImage::from_fn(img.width() * f, img.height() * f, |x, y| {
+        *img.get_pixel(x / f, y / f)
+    })
+}
+
+/// The integer factor that brings the width to at least `target` pixels.
+pub fn factor_for(width: u32, target: u32) -> u32 {
+    target.div_ceil(width.max(1)).max(1)
+}
+
+/// Write an animated GIF (looping, `delay_ms` per frame), atomically.
+pub fn write_gif(path: &Path, frames: &[RgbImage], delay_ms: u32) -> anyhow::Result<()> {
+    use image::codecs::gif::{GifEncoder, Repeat};
+    let mut bytes = Vec::new();
+    {
+        let mut enc = GifEncoder::new_with_speed(&mut bytes, 10);
+        enc.set_repeat(Repeat::Infinite)?;
+        for f in frames {
+            let rgba = RgbaImage::from_fn(f.width(), f.height(), |x, y| {
+                let p = f.get_pixel(x, y).0;
+                image::Rgba([p[0], p[1], p[2], 255])
+            });
+            enc.encode_frame(image::Frame::from_parts(
+                rgba,
+                0,
+                0,
+                image::Delay::from_numer_denom_ms(delay_ms, 1),
+            ))
+            .with_context(|| format!("encoding {}", path.display()))?;
+        }
+    }
+    mhi_data::write_atomic(path, &bytes)?;
+    Ok(())
+}
+
+/// An MHI layer as a picture: its colour weighted by alpha over a grey checkerboard.
+pub fn layer_picture(color: &Rgb32FImage, alpha: &[f32]) -> RgbImage {
+    RgbImage::from_fn(color.width(), color.height(), |x, y| {
+        let a = alpha[(y * color.width() + x) as usize].clamp(0.0, 1.0);
+        let bg = if (x / 4 + y / 4) % 2 == 0 { 0.8 } else { 0.6 };
+        let p = color.get_pixel(x, y).0;
+        image::Rgb(p.map(|c| ((a * c + (1.0 - a) * bg).clamp(0.0, 1.0) * 255.0).round() as u8))
+    })
+}
+
+/// Tile images left to right with a 2-pixel white gap.
+pub fn strip(images: &[RgbImage]) -> RgbImage {
+    let h = images.iter().map(|i| i.height()).max().unwrap_or(1);
+    let w: u32 = images.iter().map(|i| i.width() + 2).sum::<u32>().max(1);
+    let mut out = RgbImage::from_pixel(w, h, image::Rgb([255, 255, 255]));
+    let mut x0 = 0;
+    for im in images {
+        image::imageops::replace(&mut out, im, i64::from(x0), 0);
+        x0 += im.width() + 2;
+    }
+    out
+}
+
+/// A weight map (values in [0, 1]) as a grey image.
+pub fn grey(values: &[f32], width: u32, height: u32) -> RgbImage {
+    RgbImage::from_fn(width, height, |x, y| {
+        let v = values[(y * width + x) as usize];
+        let g = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+        image::Rgb([g, g, g])
+    })
+}

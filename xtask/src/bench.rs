@@ -45,7 +45,11 @@ pub struct BenchArgs {
     /// stage 1, warp, loss; forward and backward each) on a synthetic sample.
     #[arg(long)]
     pub train_step: bool,
-    /// Dataset for --train-step (synthetic; generated if missing).
+    /// Instead of the renderer, run the default model's forward pass on flex and on this
+    /// backend (`wgpu`, needs `--features wgpu`) with the same weights and compare.
+    #[arg(long)]
+    pub compare_backend: Option<String>,
+    /// Dataset for --train-step and --compare-backend (synthetic; generated if missing).
     #[arg(long, default_value = "data/synth")]
     pub data: PathBuf,
     /// Weights cache for --train-step's VGG loss (default: $MHI_CACHE, else ~/.cache/mhi).
@@ -118,6 +122,13 @@ fn read_bandwidth() -> f64 {
 
 /// `cargo xtask bench`.
 pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
+    if let Some(other) = &a.compare_backend {
+        let v = crate::step::backend_agreement(&a.data, other)?;
+        if let Some(p) = &a.json {
+            mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
+        }
+        return Ok(());
+    }
     if a.train_step {
         let weights = crate::weights::cache_dir(a.cache.as_deref()).join("weights");
         let v = crate::step::train_step(&a.data, &weights, a.runs)?;

@@ -7,6 +7,7 @@ mod eval;
 mod experiments;
 mod metrics;
 mod progress;
+mod render;
 mod stability;
 mod step;
 mod train;
@@ -56,6 +57,10 @@ enum Task {
     /// and blend; writes report.md/json/csv, error_vs_time and training_curve figures, sample
     /// images, the MHI layers of one scene and an orbit GIF.
     Eval(eval::EvalArgs),
+    /// Novel views of your own two photos: a RealEstate10K-style camera file gives their cameras
+    /// and the poses to render; a trained run (--run) or the training-free sweep builds the MHI;
+    /// writes the views and an orbit GIF around the reference photo.
+    Render(render::RenderArgs),
     /// PSNR, SSIM, LPIPS-alex and LPIPS-vgg (v0.1) of two images of the same size.
     Metrics(metrics::MetricsArgs),
 }
@@ -90,6 +95,7 @@ fn main() {
         Task::Metrics(a) => metrics::metrics(&a),
         Task::Eval(a) => eval::eval(&a),
         Task::Demo(a) => demo::demo(&a),
+        Task::Render(a) => render::render(&a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

@@ -123,3 +123,119 @@ pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<se
         "loss_forward_ms": loss_fwd, "loss_forward_backward_ms": loss_both,
     }))
 }
+
+/// Run one forward pass of the default model (cost volume → stage 1 → warp and composite → the
+/// blending network) on the flex backend and on `other`, with the same weights (saved from flex,
+/// loaded on the other device) and the same sample; report the largest differences and times.
+pub fn backend_agreement(data: &Path, other: &str) -> anyhow::Result<serde_json::Value> {
+    use burn::module::Module as _;
+    crate::experiments::ensure_synthetic(data)?;
+    let ds = Dataset::open(data, "train", 3)?;
+    let seq = ds
+        .sequences
+        .first()
+        .ok_or_else(|| anyhow::anyhow!("{}: no training sequence", ds.dir.display()))?;
+    let config = TrainConfig::for_normals(5);
+    let size = Some((config.width, config.height));
+    let load = |i: usize| load_frame(&seq.frames[i], size, Fit::Stretch);
+    let (rf, sf, tf) = (load(0)?, load(3)?, load(6)?);
+    let flex = Device::flex();
+    let gpu = crate::train::device(other)?;
+    let (stage1, blend) = init_models(&config, &flex);
+    let tmp = tempfile::tempdir()?;
+    stage1
+        .clone()
+        .save_file(tmp.path().join("s1.bpk"))
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    blend
+        .clone()
+        .save_file(tmp.path().join("b.bpk"))
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let normals = config.normal_set()?;
+    let depths = mhi_geom::depths_linear_in_disparity(config.near, config.far, config.planes)?;
+    let (n, d) = (normals.len(), depths.len());
+    let (w, h) = (config.width as usize, config.height as usize);
+    let forward = |device: &Device,
+                   s1: &mhi_net::Stage1,
+                   bl: &mhi_net::BlendNet|
+     -> anyhow::Result<(Vec<f32>, Vec<f32>, f64)> {
+        let t0 = Instant::now();
+        let volume = cost_volume(&normals, &depths, &rf, &sf, device)?;
+        let alpha = s1.forward(volume).reshape([n * d, 1, h, w]);
+        let geom = WarpGeometry::new(&normals, &depths, &rf.camera, &tf.camera, device)?;
+        let soft = heuristic_weights_tensor(
+            &normals,
+            &rf.camera,
+            &tf.camera,
+            BlendHeuristic::Soft,
+            device,
+        );
+        let (_, mni) = render_shared(
+            alpha.clone(),
+            image_to_tensor(&rf.image, device),
+            &geom,
+            soft.clone(),
+        );
+        let input = Tensor::cat(
+            vec![
+                mni.clone().reshape([1, 3 * n, h, w]),
+                soft.reshape([1, n, h, w]),
+            ],
+            1,
+        );
+        let weights = bl.forward(input).reshape([n, 1, h, w]);
+        let image = mhi_render::diff::blend(mni, weights);
+        let a: Vec<f32> = alpha
+            .into_data()
+            .try_to_vec()
+            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+        let i: Vec<f32> = image
+            .into_data()
+            .try_to_vec()
+            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+        Ok((a, i, t0.elapsed().as_secs_f64() * 1e3))
+    };
+    let (a0, i0, t_flex) = forward(&flex, &stage1, &blend)?;
+    let s1g = config
+        .stage1
+        .init(&gpu)
+        .try_load_file(tmp.path().join("s1.bpk"))
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let blg = config
+        .blend
+        .init(&gpu)
+        .try_load_file(tmp.path().join("b.bpk"))
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let _ = forward(&gpu, &s1g, &blg)?; // warm-up: shader compilation
+    let (a1, i1, t_gpu) = forward(&gpu, &s1g, &blg)?;
+    let max_diff = |x: &[f32], y: &[f32]| {
+        x.iter()
+            .zip(y)
+            .map(|(p, q)| (p - q).abs())
+            .fold(0.0_f32, f32::max)
+    };
+    let nonfinite = a1.iter().chain(&i1).filter(|v| !v.is_finite()).count();
+    let (da, di) = (max_diff(&a0, &a1), max_diff(&i0, &i1));
+    println!(
+        "forward of the default model (N={n} D={d} {w}x{h}): flex {t_flex:.0} ms, {other} {t_gpu:.0} ms (after a warm-up)"
+    );
+    println!("max |alpha_flex - alpha_{other}| = {da:.2e}");
+    println!("max |image_flex - image_{other}| = {di:.2e}");
+    println!("non-finite values on {other}: {nonfinite}");
+    let ok = da < 1e-3 && di < 1e-3 && nonfinite == 0;
+    println!(
+        "{}",
+        if ok {
+            "agree (bound 1e-3)"
+        } else {
+            "DISAGREE (bound 1e-3)"
+        }
+    );
+    if !ok {
+        anyhow::bail!("{other} disagrees with flex beyond 1e-3");
+    }
+    Ok(serde_json::json!({
+        "backend": other, "flex_ms": t_flex, "other_ms": t_gpu,
+        "max_alpha_diff": da, "max_image_diff": di, "nonfinite": nonfinite,
+    }))
+}

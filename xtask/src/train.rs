@@ -81,9 +81,13 @@ pub struct TrainArgs {
 pub fn device(backend: &str) -> anyhow::Result<Device> {
     match backend {
         "flex" => Ok(Device::flex()),
-        other => bail!(
-            "unknown or unavailable backend {other:?}: this build has flex (the wgpu backend is not wired in yet)"
+        #[cfg(feature = "wgpu")]
+        "wgpu" => Ok(Device::wgpu(burn::tensor::DeviceKind::DefaultDevice)),
+        #[cfg(not(feature = "wgpu"))]
+        "wgpu" => bail!(
+            "this build has no wgpu backend; build it with `cargo run -p xtask --features wgpu -- ...` (about 14 minutes from clean)"
         ),
+        other => bail!("unknown backend {other:?}: choose flex (CPU) or wgpu"),
     }
 }
 

@@ -360,3 +360,157 @@ fn killed_training_resumes_from_its_last_checkpoint() {
         serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["steps"].as_u64(), Some(resumed_from + 4));
 }
+
+/// `eval` end to end on a tiny synthetic set with a tiny trained run: every method appears in
+/// report.json with the documented fields, the markdown tables and figures are written, and a
+/// second run refuses to replace the report without --overwrite.
+#[test]
+fn eval_writes_a_complete_report_and_keeps_an_existing_one() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let run = d.path().join("run");
+    let (r, data) = (run.to_str().unwrap(), root.to_str().unwrap());
+    let o = xtask(&train_args(r, data, "2"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = d.path().join("report");
+    let o_ = out.to_str().unwrap();
+    let cache = d.path().join("no-cache");
+    let eval = [
+        "eval",
+        "--data",
+        data,
+        "--run",
+        r,
+        "--size",
+        "16x16",
+        "--sweep-grid",
+        "1x2,2x2",
+        "--oracle-grid",
+        "2x2",
+        "--orbit-frames",
+        "3",
+        "--samples",
+        "1",
+        "--out",
+        o_,
+        "--cache",
+        cache.to_str().unwrap(),
+    ];
+    let o = xtask(&eval);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let rows = v["rows"].as_array().unwrap();
+    let methods: std::collections::BTreeSet<&str> =
+        rows.iter().map(|r| r["method"].as_str().unwrap()).collect();
+    for m in [
+        "learned", "soft", "hard", "avg", "sweep", "oracle", "nearest",
+    ] {
+        assert!(methods.contains(m), "{m} missing from {methods:?}");
+    }
+    for row in rows {
+        for k in [
+            "method",
+            "normals",
+            "planes",
+            "bin",
+            "kind",
+            "count",
+            "psnr",
+            "ssim",
+            "lpips",
+            "ms_per_view",
+        ] {
+            assert!(row.get(k).is_some(), "{k} missing in {row}");
+        }
+        assert!(row["psnr"].as_f64().unwrap().is_finite());
+        // No weights in the cache: LPIPS is absent, not invented.
+        assert!(row["lpips"].is_null());
+    }
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        md.contains("### PSNR") && md.contains("N × D sweep: sweep"),
+        "{md}"
+    );
+    for f in [
+        "report.csv",
+        "error_vs_time.svg",
+        "error_vs_time.png",
+        "training_curve.png",
+        "orbit.gif",
+        "layers/normal_0.png",
+        "samples/000/ground_truth.png",
+    ] {
+        assert!(out.join(f).is_file(), "{f} not written");
+    }
+    let before = std::fs::read(out.join("report.json")).unwrap();
+    let err = fails(&eval);
+    assert!(err.contains("--overwrite"), "{err}");
+    assert_eq!(std::fs::read(out.join("report.json")).unwrap(), before);
+}
+
+#[test]
+fn render_names_the_bad_camera_row_and_refuses_missing_rows() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let seq = root.join("test/scene_00001");
+    let cams = root.join("test/scene_00001.txt");
+    let mut frames: Vec<PathBuf> = std::fs::read_dir(&seq)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    frames.sort();
+    let (a, b) = (frames[0].to_str().unwrap(), frames[2].to_str().unwrap());
+    let out = d.path().join("views");
+    let base = |cams: &str, extra: &[&'static str]| {
+        let mut v = vec![
+            "render".to_string(),
+            "--ref".into(),
+            a.into(),
+            "--src".into(),
+            b.into(),
+            "--src-row".into(),
+            "3".into(),
+            "--cameras".into(),
+            cams.into(),
+            "--size".into(),
+            "32x24".into(),
+            "--planes".into(),
+            "4".into(),
+            "--orbit-frames".into(),
+            "2".into(),
+            "--out".into(),
+            out.to_str().unwrap().into(),
+        ];
+        v.extend(extra.iter().map(|s| s.to_string()));
+        v
+    };
+    let run = |v: Vec<String>| {
+        let refs: Vec<&str> = v.iter().map(String::as_str).collect();
+        xtask(&refs)
+    };
+    // A good file renders rows 2 and 4 and the orbit.
+    let o = run(base(cams.to_str().unwrap(), &[]));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.join("view_row002.png").is_file() && out.join("orbit.gif").is_file());
+    // Again without --overwrite: refused.
+    let v = base(cams.to_str().unwrap(), &[]);
+    let err = fails(&v.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(err.contains("--overwrite"), "{err}");
+    // A row that is not a pose names the file and line.
+    let text = std::fs::read_to_string(&cams).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let mut cols: Vec<String> = lines[2].split_whitespace().map(String::from).collect();
+    cols[7] = "2.0".into();
+    lines[2] = cols.join(" ");
+    let bad = d.path().join("bad.txt");
+    std::fs::write(&bad, lines.join("\n")).unwrap();
+    let v = base(bad.to_str().unwrap(), &["--overwrite"]);
+    let err = fails(&v.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(err.contains("bad.txt:3"), "{err}");
+    // A photo row beyond the file.
+    let mut v = base(cams.to_str().unwrap(), &["--overwrite"]);
+    v[6] = "9".into();
+    let err = fails(&v.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(err.contains("--src-row 9"), "{err}");
+}

@@ -59,9 +59,8 @@ pub fn photometric(a: Tensor<4>, b: Tensor<4>) -> Tensor<1> {
 /// Name of the fallback loss recorded in a run's config.
 pub const PHOTOMETRIC_NAME: &str = "0.15*L1 + 0.85*(1-SSIM)/2 (VGG16 weights not available)";
 
-/// Name of the perceptual loss recorded in a run's config.
-pub const PERCEPTUAL_NAME: &str =
-    "L1 + 0.226*(conv1_2/2.6 + conv2_2/4.8 + conv3_2/3.7 + conv4_2/5.6 + conv5_2*10/1.5) (VGG16)";
+/// The name of the perceptual loss recorded in a run's config ends with this.
+pub const PERCEPTUAL_SUFFIX: &str = "(VGG16)";
 
 /// Stereo Magnification's weights of the five VGG layers' mean absolute feature differences.
 pub const VGG_LAYER_WEIGHTS: [f32; 5] = [1.0 / 2.6, 1.0 / 4.8, 1.0 / 3.7, 1.0 / 5.6, 10.0 / 1.5];
@@ -69,37 +68,54 @@ pub const VGG_LAYER_WEIGHTS: [f32; 5] = [1.0 / 2.6, 1.0 / 4.8, 1.0 / 3.7, 1.0 / 
 /// Stereo Magnification compares caffe-VGG features of images in `[0, 255]` and adds the pixel
 /// L1 in the same units; the torchvision VGG16 here sees `(x − mean) / std` with std ≈ 0.226, so
 /// its features are ≈ 255 · 0.226 times smaller. Dividing the paper's total by 255 gives
-/// `L1 + 0.226 · Σ w_l · |Δf_l|` with pixels in `[0, 1]`.
+/// `L1 + 0.226 · Σ w_l · |Δf_l|` with pixels in `[0, 1]` — if the two networks' features had the
+/// same scale for the same input scale, which they need not (each was trained on its own input
+/// range), so the factor is a training option (`TrainConfig::perceptual_weight`).
 pub const VGG_FEATURE_SCALE: f32 = 0.226;
 
 /// The loss a training run minimises.
 pub enum TrainLoss {
     /// L1 + SSIM (no pretrained weights needed).
     Photometric,
-    /// L1 + VGG16 perceptual term (the paper's loss, with VGG16 for VGG19).
-    Perceptual(Box<Backbone>),
+    /// L1 + `weight` · VGG16 perceptual term (the paper's loss, with VGG16 for VGG19).
+    Perceptual {
+        /// The pretrained VGG16.
+        vgg: Box<Backbone>,
+        /// Factor of the feature term (see [`VGG_FEATURE_SCALE`]).
+        weight: f32,
+    },
 }
 
 impl TrainLoss {
-    /// The perceptual loss if `DIR/vgg16.safetensors` loads, else the fallback and the reason.
+    /// The perceptual loss (feature term scaled by `weight`) if `DIR/vgg16.safetensors` loads,
+    /// else the fallback and the reason.
     pub fn from_weights(
         dir: Option<&Path>,
+        weight: f32,
         device: &burn::tensor::Device,
     ) -> (Self, Option<String>) {
         let Some(dir) = dir else {
             return (Self::Photometric, Some("no weights directory given".into()));
         };
         match Backbone::load(dir, Net::Vgg16, device) {
-            Ok(b) => (Self::Perceptual(Box::new(b)), None),
+            Ok(b) => (
+                Self::Perceptual {
+                    vgg: Box::new(b),
+                    weight,
+                },
+                None,
+            ),
             Err(e) => (Self::Photometric, Some(e.to_string())),
         }
     }
 
     /// Name recorded in `config.json`.
-    pub fn name(&self) -> &'static str {
+    pub fn name(&self) -> String {
         match self {
-            Self::Photometric => PHOTOMETRIC_NAME,
-            Self::Perceptual(_) => PERCEPTUAL_NAME,
+            Self::Photometric => PHOTOMETRIC_NAME.into(),
+            Self::Perceptual { weight, .. } => format!(
+                "L1 + {weight}*(conv1_2/2.6 + conv2_2/4.8 + conv3_2/3.7 + conv4_2/5.6 + conv5_2*10/1.5) {PERCEPTUAL_SUFFIX}"
+            ),
         }
     }
 
@@ -114,12 +130,12 @@ impl TrainLoss {
                 let target = target.expand(output.dims());
                 Ok(photometric(output, target))
             }
-            Self::Perceptual(vgg) => perceptual(vgg, output, target),
+            Self::Perceptual { vgg, weight } => perceptual(vgg, output, target, *weight),
         }
     }
 }
 
-/// `L1 + 0.226 · Σ_l w_l · mean |f_l(a) − f_l(b)|` over VGG16 conv1_2 … conv5_2 (see
+/// `L1 + weight · Σ_l w_l · mean |f_l(a) − f_l(b)|` over VGG16 conv1_2 … conv5_2 (see
 /// [`VGG_FEATURE_SCALE`], [`VGG_LAYER_WEIGHTS`]); `b` is the target and is detached.
 ///
 /// # Errors
@@ -127,14 +143,19 @@ impl TrainLoss {
 ///
 /// # Shapes
 /// `[B, 3, H, W]` (H, W ≥ 16), `[B or 1, 3, H, W]` → `[1]`
-pub fn perceptual(vgg: &Backbone, a: Tensor<4>, b: Tensor<4>) -> crate::Result<Tensor<1>> {
+pub fn perceptual(
+    vgg: &Backbone,
+    a: Tensor<4>,
+    b: Tensor<4>,
+    weight: f32,
+) -> crate::Result<Tensor<1>> {
     let b = b.detach();
     let mut total = l1(a.clone(), b.clone().expand(a.dims()));
     let fa = vgg.perceptual_features(a)?;
     let fb = vgg.perceptual_features(b)?;
     for ((x, y), w) in fa.into_iter().zip(fb).zip(VGG_LAYER_WEIGHTS) {
         let y = y.detach().expand(x.dims());
-        total = total + l1(x, y) * (w * VGG_FEATURE_SCALE);
+        total = total + l1(x, y) * (w * weight);
     }
     Ok(total)
 }

@@ -66,6 +66,9 @@ pub struct TrainConfig {
     /// Held-out samples scored at every checkpoint (`val.csv`; 0 turns it off).
     #[config(default = 4)]
     pub val_samples: usize,
+    /// Factor of the VGG feature term of the perceptual loss (see `loss::VGG_FEATURE_SCALE`).
+    #[config(default = 0.226)]
+    pub perceptual_weight: f32,
     /// The loss actually used (filled in by the trainer).
     #[config(default = "String::new()")]
     pub loss: String,
@@ -91,6 +94,8 @@ impl TrainConfig {
         let mut v: serde_json::Value = serde_json::from_str(text).map_err(bad)?;
         if let Some(o) = v.as_object_mut() {
             o.entry("val_samples").or_insert(serde_json::json!(0));
+            o.entry("perceptual_weight")
+                .or_insert(serde_json::json!(crate::loss::VGG_FEATURE_SCALE));
         }
         serde_json::from_value(v).map_err(bad)
     }
@@ -231,7 +236,10 @@ impl Trainer {
             )));
         }
         std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
-        config.loss = loss.name().into();
+        if let TrainLoss::Perceptual { weight, .. } = &loss {
+            config.perceptual_weight = *weight;
+        }
+        config.loss = loss.name();
         write_atomic(
             &dir.join("config.json"),
             serde_json::to_string_pretty(&config)
@@ -241,7 +249,10 @@ impl Trainer {
         write_atomic(&dir.join("log.csv"), CSV_HEADER.as_bytes())?;
         write_atomic(&dir.join("val.csv"), VAL_CSV_HEADER.as_bytes())?;
         let (stage1, blend) = init_models(&config, &device);
-        Self::assemble(config, dir, data_root, device, stage1, blend, loss, 0, 0.0)
+        let t = Self::assemble(config, dir, data_root, device, stage1, blend, loss, 0, 0.0)?;
+        // The training curve starts at the untrained model.
+        t.log_validation()?;
+        Ok(t)
     }
 
     /// Continue the run in `dir` from its latest checkpoint, with the loss its `config.json`
@@ -256,9 +267,9 @@ impl Trainer {
         let text = std::fs::read_to_string(&cfg_path).map_err(|e| io(&cfg_path, e))?;
         let config: TrainConfig = TrainConfig::from_json(&text, &cfg_path)?;
         config.validate()?;
-        let loss = if config.loss == crate::loss::PERCEPTUAL_NAME {
-            match TrainLoss::from_weights(weights, &device) {
-                (l @ TrainLoss::Perceptual(_), _) => l,
+        let loss = if config.loss.ends_with(crate::loss::PERCEPTUAL_SUFFIX) {
+            match TrainLoss::from_weights(weights, config.perceptual_weight, &device) {
+                (l @ TrainLoss::Perceptual { .. }, _) => l,
                 (_, why) => {
                     return Err(Error::Config(format!(
                         "{}: the run trains with the VGG16 perceptual loss, but its weights cannot be loaded ({}); run `cargo xtask weights`",
@@ -661,6 +672,11 @@ impl Trainer {
                 }
             }
         }
+        self.log_validation()
+    }
+
+    /// Score the held-out samples and append a row to `val.csv` (nothing if `val_samples` is 0).
+    fn log_validation(&self) -> crate::Result<()> {
         if self.config.val_samples > 0 {
             let (learned, soft) = self.evaluate(self.config.val_samples)?;
             use std::io::Write as _;

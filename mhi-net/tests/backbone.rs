@@ -24,9 +24,40 @@ fn alexnet_shapes() -> Vec<(String, Vec<usize>)> {
     v
 }
 
+fn vgg16_shapes() -> Vec<(String, Vec<usize>)> {
+    let cfg = [
+        (3, 64),
+        (64, 64),
+        (64, 128),
+        (128, 128),
+        (128, 256),
+        (256, 256),
+        (256, 256),
+        (256, 512),
+        (512, 512),
+        (512, 512),
+        (512, 512),
+        (512, 512),
+        (512, 512),
+    ];
+    let mut v = Vec::new();
+    for (i, (ci, co)) in cfg.iter().enumerate() {
+        v.push((format!("VGG16_0/Conv_{i}/kernel"), vec![3, 3, *ci, *co]));
+        v.push((format!("VGG16_0/Conv_{i}/bias"), vec![*co]));
+    }
+    for (i, c) in [64, 128, 256, 512, 512].iter().enumerate() {
+        v.push((format!("NetLinLayer_{i}/Conv_0/kernel"), vec![1, 1, *c, 1]));
+    }
+    v
+}
+
 fn write_random_alexnet(dir: &std::path::Path) {
+    write_random(dir, alexnet_shapes(), "alexnet.safetensors");
+}
+
+fn write_random(dir: &std::path::Path, shapes: Vec<(String, Vec<usize>)>, file: &str) {
     let mut state = 7u64;
-    let buffers: Vec<(String, Vec<usize>, Vec<u8>)> = alexnet_shapes()
+    let buffers: Vec<(String, Vec<usize>, Vec<u8>)> = shapes
         .into_iter()
         .map(|(name, shape)| {
             let n: usize = shape.iter().product();
@@ -54,7 +85,7 @@ fn write_random_alexnet(dir: &std::path::Path) {
         })
         .collect();
     let bytes = safetensors::tensor::serialize(views, None::<HashMap<String, String>>).unwrap();
-    std::fs::write(dir.join("alexnet.safetensors"), bytes).unwrap();
+    std::fs::write(dir.join(file), bytes).unwrap();
 }
 
 #[test]
@@ -113,4 +144,69 @@ fn missing_weights_say_how_to_get_them() {
         err.contains("vgg16.safetensors") && err.contains("cargo xtask weights"),
         "{err}"
     );
+}
+
+/// The perceptual loss on VGG16 weights of the real shapes (random values): the five taps have
+/// the documented shapes, the loss is zero on equal images and positive otherwise, one target is
+/// compared with every output of a batch, the gradient is finite, and `TrainLoss` picks the
+/// perceptual loss when the file is there and says why not when it is not.
+#[test]
+fn perceptual_loss_on_vgg16_taps() {
+    use mhi_net::loss::{PERCEPTUAL_SUFFIX, TrainLoss, perceptual};
+    let d = tempfile::tempdir().unwrap();
+    write_random(d.path(), vgg16_shapes(), "vgg16.safetensors");
+    let device = Device::flex().autodiff();
+    let net = Backbone::load(d.path(), Net::Vgg16, &device).unwrap();
+    let feats = net
+        .perceptual_features(Tensor::zeros([1, 3, 32, 32], &device))
+        .unwrap();
+    let dims: Vec<[usize; 4]> = feats.iter().map(|f| f.dims()).collect();
+    assert_eq!(
+        dims,
+        vec![
+            [1, 64, 32, 32],
+            [1, 128, 16, 16],
+            [1, 256, 8, 8],
+            [1, 512, 4, 4],
+            [1, 512, 2, 2]
+        ]
+    );
+    let target: Tensor<4> = Tensor::random(
+        [1, 3, 32, 32],
+        burn::tensor::Distribution::Uniform(0.0, 1.0),
+        &device,
+    );
+    let value = |t: Tensor<1>| t.into_data().try_to_vec::<f32>().unwrap()[0];
+    let same = value(
+        perceptual(
+            &net,
+            target.clone().expand([3, 3, 32, 32]),
+            target.clone(),
+            0.226,
+        )
+        .unwrap(),
+    );
+    assert!(same.abs() < 1e-6, "{same}");
+    let out: Tensor<4> = (Tensor::ones([3, 3, 32, 32], &device) * 0.5).require_grad();
+    let loss = perceptual(&net, out.clone(), target.clone(), 0.226).unwrap();
+    let l = value(loss.clone());
+    assert!(l > 0.0 && l.is_finite(), "{l}");
+    let g: Vec<f32> = out
+        .grad(&loss.backward())
+        .unwrap()
+        .into_data()
+        .try_to_vec()
+        .unwrap();
+    assert!(g.iter().all(|x| x.is_finite()) && g.iter().any(|x| *x != 0.0));
+    let (chosen, why) = TrainLoss::from_weights(Some(d.path()), 0.226, &device);
+    assert!(chosen.name().ends_with(PERCEPTUAL_SUFFIX));
+    assert!(why.is_none());
+    let empty = tempfile::tempdir().unwrap();
+    let (chosen, why) = TrainLoss::from_weights(Some(empty.path()), 0.226, &device);
+    assert!(matches!(chosen, TrainLoss::Photometric));
+    assert!(why.unwrap().contains("vgg16.safetensors"));
+    // AlexNet has no perceptual taps: a clear error, not a panic.
+    write_random_alexnet(d.path());
+    let alex = Backbone::load(d.path(), Net::Alex, &device).unwrap();
+    assert!(perceptual(&alex, target.clone(), target, 0.226).is_err());
 }

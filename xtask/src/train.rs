@@ -70,6 +70,9 @@ pub struct TrainArgs {
     /// `photometric` (L1 + SSIM).
     #[arg(long, default_value = "auto", value_parser = ["auto", "perceptual", "photometric"])]
     pub loss: String,
+    /// Factor of the VGG feature term against the pixel L1 in the perceptual loss.
+    #[arg(long, default_value_t = mhi_net::loss::VGG_FEATURE_SCALE)]
+    pub perceptual_weight: f32,
     /// Weights cache (default: $MHI_CACHE, else ~/.cache/mhi); see `cargo xtask weights`.
     #[arg(long)]
     pub cache: Option<PathBuf>,
@@ -115,8 +118,8 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         c.val_samples = a.val_samples;
         let loss = match a.loss.as_str() {
             "photometric" => TrainLoss::Photometric,
-            want => match TrainLoss::from_weights(Some(&weights), &device) {
-                (l @ TrainLoss::Perceptual(_), _) => l,
+            want => match TrainLoss::from_weights(Some(&weights), a.perceptual_weight, &device) {
+                (l @ TrainLoss::Perceptual { .. }, _) => l,
                 (l, why) => {
                     let why = why.unwrap_or_default();
                     if want == "perceptual" {

@@ -154,7 +154,7 @@ fn draw_error_vs_time<DB: DrawingBackend>(
             ShapeStyle::from(&RGBColor(200, 60, 60)).stroke_width(2),
         ))
         .map_err(e)?
-        .label("Pareto front (faster or better than every other point)")
+        .label("Pareto front (ringed: no other point is both faster and better)")
         .legend(|(x, y)| {
             PathElement::new(
                 vec![(x, y), (x + 20, y)],
@@ -175,6 +175,12 @@ fn draw_error_vs_time<DB: DrawingBackend>(
             .draw_series(std::iter::once(
                 EmptyElement::at(*xy)
                     + Circle::new((0, 0), if on_front { 7 } else { 5 }, color.filled())
+                    // Front points get a red ring, so a front of one point is still visible.
+                    + Circle::new(
+                        (0, 0),
+                        if on_front { 11 } else { 0 },
+                        ShapeStyle::from(&RGBColor(200, 60, 60)).stroke_width(2),
+                    )
                     + Text::new(
                         p.label.clone(),
                         (dx, -16),

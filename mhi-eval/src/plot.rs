@@ -161,10 +161,20 @@ fn draw_error_vs_time<DB: DrawingBackend>(
                 ShapeStyle::from(&RGBColor(200, 60, 60)).stroke_width(2),
             )
         });
+    // Front points get a red ring, so a front of one point is still visible.
+    chart
+        .draw_series(front.iter().map(|&i| {
+            Circle::new(
+                pts[i],
+                11,
+                ShapeStyle::from(&RGBColor(200, 60, 60)).stroke_width(2),
+            )
+        }))
+        .map_err(e)?;
     for (i, (p, xy)) in points.iter().zip(&pts).enumerate() {
         let color = COLORS[i % COLORS.len()];
         let on_front = front.contains(&i);
-        // The label sits up and to the right of its point, or to the left near the right edge.
+        // The label sits level with its point, to its right, or to its left near the right edge.
         let right_half = xy.0.ln() > (xlo.ln() + xhi.ln()) / 2.0;
         let dx = if right_half {
             -10 - 8 * p.label.chars().count() as i32
@@ -175,15 +185,9 @@ fn draw_error_vs_time<DB: DrawingBackend>(
             .draw_series(std::iter::once(
                 EmptyElement::at(*xy)
                     + Circle::new((0, 0), if on_front { 7 } else { 5 }, color.filled())
-                    // Front points get a red ring, so a front of one point is still visible.
-                    + Circle::new(
-                        (0, 0),
-                        if on_front { 11 } else { 0 },
-                        ShapeStyle::from(&RGBColor(200, 60, 60)).stroke_width(2),
-                    )
                     + Text::new(
                         p.label.clone(),
-                        (dx, -16),
+                        (dx, -7),
                         ("sans-serif", 14).into_font().color(&color),
                     ),
             ))

@@ -714,8 +714,9 @@ impl Trainer {
         scalar(self.loss.compute(mni, target)?)
     }
 
-    /// Mean PSNR, SSIM-loss-free scores and (with `lpips`) LPIPS over `count` deterministic
-    /// held-out samples: the learned blend, and the Soft heuristic on the same stage 1.
+    /// Mean PSNR and (with `lpips`) LPIPS over `count` deterministic held-out samples (drawn
+    /// after training's range of steps): the learned blend, and the Soft heuristic on the same
+    /// stage 1.
     pub fn evaluate_scores(
         &self,
         count: usize,
@@ -754,22 +755,8 @@ impl Trainer {
     /// Mean PSNR over `count` deterministic samples drawn after training's range of steps: the
     /// learned blend, and the Soft heuristic on the same stage 1.
     pub fn evaluate(&self, count: usize) -> crate::Result<(f64, f64)> {
-        let (mut learned, mut soft_sum) = (0.0, 0.0);
-        for k in 0..count {
-            let s = self.sample(1_000_000 + k)?;
-            let alpha = self.frozen_alphas(&s)?;
-            let RenderInputs {
-                geom,
-                color,
-                soft,
-                target,
-            } = self.render_inputs(&s)?;
-            let (soft_img, mni) = render_shared(alpha, color, &geom, soft.clone());
-            let img = self.learned_blend(mni, soft);
-            learned += f64::from(psnr_of(img.detach(), target.clone(), false, 1)?);
-            soft_sum += f64::from(psnr_of(soft_img.detach(), target, false, 1)?);
-        }
-        Ok((learned / count as f64, soft_sum / count as f64))
+        let e = self.evaluate_scores(count, None)?;
+        Ok((e.psnr_learned, e.psnr_soft))
     }
 }
 

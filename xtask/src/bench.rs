@@ -60,7 +60,8 @@ pub struct BenchArgs {
     pub json: Option<PathBuf>,
 }
 
-fn median_ms(runs: usize, mut f: impl FnMut()) -> f64 {
+/// Median wall-clock milliseconds of `runs` calls of `f`, after one warm-up call.
+pub fn median_ms(runs: usize, mut f: impl FnMut()) -> f64 {
     f(); // warm-up
     let mut t: Vec<f64> = (0..runs.max(1))
         .map(|_| {

@@ -416,15 +416,7 @@ fn run_methods(
         let network_ms = ms(t1);
         let mhi = model.mhi(rf, alphas)?;
         let t2 = Instant::now();
-        let r = render(
-            &mhi,
-            &tf.camera,
-            &RenderOptions {
-                blend: Blend::Heuristic(BlendHeuristic::Avg),
-                prune: Prune::NONE,
-                keep_multi_normal: true,
-            },
-        )?;
+        let r = render_mni(&mhi, &tf.camera)?;
         let render_ms = ms(t2);
         let base = Times {
             volume_ms,
@@ -550,18 +542,23 @@ fn run_methods(
     Ok(out)
 }
 
-/// Render the multi-normal images, then blend them with Soft (timed apart).
-fn render_soft(mhi: &Mhi, tf: &LoadedFrame) -> anyhow::Result<(Rgb32FImage, f64, f64)> {
-    let t0 = Instant::now();
-    let r = render(
+/// The N multi-normal images of a view, exactly (no pruning).
+pub fn render_mni(mhi: &Mhi, camera: &mhi_geom::Camera) -> anyhow::Result<mhi_render::Rendered> {
+    Ok(render(
         mhi,
-        &tf.camera,
+        camera,
         &RenderOptions {
             blend: Blend::Heuristic(BlendHeuristic::Avg),
             prune: Prune::NONE,
             keep_multi_normal: true,
         },
-    )?;
+    )?)
+}
+
+/// Render the multi-normal images, then blend them with Soft (timed apart).
+fn render_soft(mhi: &Mhi, tf: &LoadedFrame) -> anyhow::Result<(Rgb32FImage, f64, f64)> {
+    let t0 = Instant::now();
+    let r = render_mni(mhi, &tf.camera)?;
     let render_ms = ms(t0);
     let t1 = Instant::now();
     let w = heuristic_weights_for(
@@ -716,15 +713,7 @@ fn write_layers_and_orbit(
             .collect();
         mhi_data::write_png(&dir.join(format!("normal_{i}.png")), &strip(&tiles))?;
     }
-    let r = render(
-        &mhi,
-        &tf.camera,
-        &RenderOptions {
-            blend: Blend::Heuristic(BlendHeuristic::Avg),
-            prune: Prune::NONE,
-            keep_multi_normal: true,
-        },
-    )?;
+    let r = render_mni(&mhi, &tf.camera)?;
     let soft = heuristic_weights_for(mhi.normals(), &rf.camera, &tf.camera, BlendHeuristic::Soft);
     let weights = match learned {
         Some(m) if mhi.n() > 1 => m.blend_weights(&r.multi_normal, &soft)?,
@@ -753,15 +742,7 @@ fn write_layers_and_orbit(
         let cams = crate::views::orbit(&rf.camera, 0.5 * baseline, a.orbit_frames)?;
         let mut frames = Vec::new();
         for c in &cams {
-            let r = render(
-                &mhi,
-                c,
-                &RenderOptions {
-                    blend: Blend::Heuristic(BlendHeuristic::Avg),
-                    prune: Prune::NONE,
-                    keep_multi_normal: true,
-                },
-            )?;
+            let r = render_mni(&mhi, c)?;
             let soft = heuristic_weights_for(mhi.normals(), &rf.camera, c, BlendHeuristic::Soft);
             let wts = match learned {
                 Some(m) if mhi.n() > 1 => m.blend_weights(&r.multi_normal, &soft)?,

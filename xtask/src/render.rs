@@ -13,7 +13,7 @@ use image::Rgb32FImage;
 use mhi_data::{CameraFile, Fit, Frame, LoadedFrame, load_frame};
 use mhi_geom::{BlendHeuristic, Camera, depths_linear_in_disparity};
 use mhi_net::Model;
-use mhi_render::{Blend, Mhi, Prune, RenderOptions, SweepConfig, heuristic_weights_for, sweep_mhi};
+use mhi_render::{Mhi, SweepConfig, heuristic_weights_for, sweep_mhi};
 
 use crate::views::{clipped, combine, enlarge, factor_for, orbit, write_gif};
 
@@ -216,15 +216,7 @@ fn view(
     rf: &LoadedFrame,
     cam: &Camera,
 ) -> anyhow::Result<Rgb32FImage> {
-    let r = mhi_render::render(
-        mhi,
-        cam,
-        &RenderOptions {
-            blend: Blend::Heuristic(BlendHeuristic::Avg),
-            prune: Prune::NONE,
-            keep_multi_normal: true,
-        },
-    )?;
+    let r = crate::eval::render_mni(mhi, cam)?;
     let soft = heuristic_weights_for(mhi.normals(), &rf.camera, cam, BlendHeuristic::Soft);
     let w = match model {
         Some(m) if mhi.n() > 1 => m.blend_weights(&r.multi_normal, &soft)?,

@@ -5,25 +5,14 @@
 use std::path::Path;
 use std::time::Instant;
 
+use crate::bench::median_ms;
+
 use burn::tensor::{Device, Distribution, Tensor};
 use mhi_data::{Dataset, Fit, load_frame};
 use mhi_geom::BlendHeuristic;
 use mhi_net::loss::TrainLoss;
 use mhi_net::{TrainConfig, cost_volume, init_models};
 use mhi_render::diff::{WarpGeometry, heuristic_weights_tensor, image_to_tensor, render_shared};
-
-fn median_ms(runs: usize, mut f: impl FnMut()) -> f64 {
-    f();
-    let mut t: Vec<f64> = (0..runs.max(1))
-        .map(|_| {
-            let t0 = Instant::now();
-            f();
-            t0.elapsed().as_secs_f64() * 1e3
-        })
-        .collect();
-    t.sort_by(f64::total_cmp);
-    t[t.len() / 2]
-}
 
 /// Time the parts of one phase-1 step of the default model (N = 5, D = 8, 64×64).
 pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<serde_json::Value> {

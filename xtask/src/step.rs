@@ -8,14 +8,15 @@ use std::time::Instant;
 use crate::bench::median_ms;
 
 use burn::tensor::{Device, Distribution, Tensor};
-use mhi_data::{Dataset, Fit, load_frame};
+use mhi_data::{Dataset, Fit, LoadedFrame, load_frame};
 use mhi_geom::BlendHeuristic;
 use mhi_net::loss::TrainLoss;
 use mhi_net::{TrainConfig, cost_volume, init_models};
 use mhi_render::diff::{WarpGeometry, heuristic_weights_tensor, image_to_tensor, render_shared};
 
-/// Time the parts of one phase-1 step of the default model (N = 5, D = 8, 64×64).
-pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<serde_json::Value> {
+/// The default model's configuration and a fixed sample (frames 0, 3, 6 of the first training
+/// sequence) at its training size.
+fn default_sample(data: &Path) -> anyhow::Result<(TrainConfig, [LoadedFrame; 3])> {
     crate::experiments::ensure_synthetic(data)?;
     let ds = Dataset::open(data, "train", 3)?;
     let seq = ds
@@ -25,7 +26,13 @@ pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<se
     let config = TrainConfig::for_normals(5);
     let size = Some((config.width, config.height));
     let load = |i: usize| load_frame(&seq.frames[i], size, Fit::Stretch);
-    let (rf, sf, tf) = (load(0)?, load(3)?, load(6)?);
+    let frames = [load(0)?, load(3)?, load(6)?];
+    Ok((config, frames))
+}
+
+/// Time the parts of one phase-1 step of the default model (N = 5, D = 8, 64×64).
+pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<serde_json::Value> {
+    let (config, [rf, sf, tf]) = default_sample(data)?;
     let device = Device::flex().autodiff();
     let (stage1, _) = init_models(&config, &device);
     let normals = config.normal_set()?;
@@ -119,16 +126,7 @@ pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<se
 /// loaded on the other device) and the same sample; report the largest differences and times.
 pub fn backend_agreement(data: &Path, other: &str) -> anyhow::Result<serde_json::Value> {
     use burn::module::Module as _;
-    crate::experiments::ensure_synthetic(data)?;
-    let ds = Dataset::open(data, "train", 3)?;
-    let seq = ds
-        .sequences
-        .first()
-        .ok_or_else(|| anyhow::anyhow!("{}: no training sequence", ds.dir.display()))?;
-    let config = TrainConfig::for_normals(5);
-    let size = Some((config.width, config.height));
-    let load = |i: usize| load_frame(&seq.frames[i], size, Fit::Stretch);
-    let (rf, sf, tf) = (load(0)?, load(3)?, load(6)?);
+    let (config, [rf, sf, tf]) = default_sample(data)?;
     let flex = Device::flex();
     let gpu = crate::train::device(other)?;
     let (stage1, blend) = init_models(&config, &flex);

@@ -56,8 +56,9 @@ pub fn photometric(a: Tensor<4>, b: Tensor<4>) -> Tensor<1> {
     l1(a.clone(), b.clone()) * 0.15 + ssim_loss(a, b) * 0.85
 }
 
-/// Name of the fallback loss recorded in a run's config.
-pub const PHOTOMETRIC_NAME: &str = "0.15*L1 + 0.85*(1-SSIM)/2 (VGG16 weights not available)";
+/// Name of the L1 + SSIM loss recorded in a run's config (chosen with `--loss photometric`, or
+/// the fallback when the VGG16 weights are absent: training then says why).
+pub const PHOTOMETRIC_NAME: &str = "0.15*L1 + 0.85*(1-SSIM)/2";
 
 /// The name of the perceptual loss recorded in a run's config ends with this.
 pub const PERCEPTUAL_SUFFIX: &str = "(VGG16)";

@@ -3,7 +3,6 @@
 
 use std::path::Path;
 
-use burn::module::Module;
 use burn::tensor::{Device, Tensor, TensorData};
 use image::Rgb32FImage;
 use mhi_data::LoadedFrame;
@@ -13,7 +12,7 @@ use mhi_render::{LayerColor, Mhi, plane_sweep_volume};
 
 use crate::Error;
 use crate::nets::{BlendNet, Stage1};
-use crate::train::{Latest, TrainConfig, record_error};
+use crate::train::{Latest, TrainConfig, load_networks};
 
 /// A trained model (the networks of a run's latest checkpoint) on a non-autodiff device.
 pub struct Model {
@@ -44,17 +43,7 @@ impl Model {
                 }
             })?)
             .map_err(|e| Error::Checkpoint(format!("{}: {e}", latest_path.display())))?;
-        let ck = run.join(&latest.dir);
-        let stage1 = config
-            .stage1
-            .init(&device)
-            .try_load_file(ck.join("stage1.bpk"))
-            .map_err(|e| record_error(&ck.join("stage1.bpk"), &e))?;
-        let blend = config
-            .blend
-            .init(&device)
-            .try_load_file(ck.join("blend.bpk"))
-            .map_err(|e| record_error(&ck.join("blend.bpk"), &e))?;
+        let (stage1, blend) = load_networks(&config, &run.join(&latest.dir), &device)?;
         let normals = config.normal_set()?;
         let depths = depths_linear_in_disparity(config.near, config.far, config.planes)?;
         Ok(Self {

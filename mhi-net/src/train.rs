@@ -295,16 +295,7 @@ impl Trainer {
         };
         let ck = dir.join(&latest.dir);
         let load = |what: &str| ck.join(format!("{what}.bpk"));
-        let stage1 = config
-            .stage1
-            .init(&device)
-            .try_load_file(load("stage1"))
-            .map_err(|e| record_error(&load("stage1"), &e))?;
-        let blend = config
-            .blend
-            .init(&device)
-            .try_load_file(load("blend"))
-            .map_err(|e| record_error(&load("blend"), &e))?;
+        let (stage1, blend) = load_networks(&config, &ck, &device)?;
         let state_path = ck.join("state.json");
         let state: CheckpointState = serde_json::from_str(
             &std::fs::read_to_string(&state_path).map_err(|e| io(&state_path, e))?,
@@ -793,9 +784,30 @@ struct CheckpointState {
     elapsed_s: f64,
 }
 
+/// The two networks of the checkpoint directory `ck` (`stage1.bpk`, `blend.bpk`), shaped by
+/// `config`.
+pub(crate) fn load_networks(
+    config: &TrainConfig,
+    ck: &Path,
+    device: &Device,
+) -> crate::Result<(Stage1, BlendNet)> {
+    let load = |what: &str| ck.join(format!("{what}.bpk"));
+    let stage1 = config
+        .stage1
+        .init(device)
+        .try_load_file(load("stage1"))
+        .map_err(|e| record_error(&load("stage1"), &e))?;
+    let blend = config
+        .blend
+        .init(device)
+        .try_load_file(load("blend"))
+        .map_err(|e| record_error(&load("blend"), &e))?;
+    Ok((stage1, blend))
+}
+
 /// A checkpoint that cannot be applied, in one paragraph: the first mismatching parameter and how
 /// many others there are (burn lists every one).
-pub(crate) fn record_error(path: &Path, e: &burn::store::RecordError) -> Error {
+fn record_error(path: &Path, e: &burn::store::RecordError) -> Error {
     let text = e.to_string();
     let items: Vec<&str> = text
         .split_once('[')

@@ -18,8 +18,7 @@ use mhi_net::Model;
 use mhi_net::backbone::{Backbone, Net};
 use mhi_render::heuristic_weights_for;
 use mhi_render::{
-    Blend, LayerColor, Mhi, PixelTruth, Prune, RenderOptions, SweepConfig, oracle_alpha, render,
-    sweep_mhi,
+    Blend, LayerColor, Mhi, Prune, RenderOptions, SweepConfig, oracle_alpha, render, sweep_mhi,
 };
 use serde::Serialize;
 
@@ -104,14 +103,6 @@ pub fn parse_nd(s: &str) -> anyhow::Result<(usize, usize)> {
         bail!("configuration {s:?}: normals and planes must be positive");
     }
     Ok((n, d))
-}
-
-pub fn normal_set(n: usize) -> anyhow::Result<NormalSet> {
-    Ok(if n == 5 {
-        NormalSet::paper()
-    } else {
-        NormalSet::paper_subset(n)?
-    })
 }
 
 struct Loaded {
@@ -480,7 +471,7 @@ fn run_methods(
         }
     }
     for &(n, d) in sweep_grid {
-        let normals = normal_set(n)?;
+        let normals = NormalSet::paper_subset(n)?;
         let depths = depths_linear_in_disparity(a.near, a.far, d)?;
         let t0 = Instant::now();
         let mhi = sweep_mhi(
@@ -509,13 +500,9 @@ fn run_methods(
     }
     if !oracle_grid.is_empty() {
         let scene = load_scene(&ds.dir.join(&seq.name).join("scene.json"))?;
-        let truth: Vec<Option<PixelTruth>> = scene
-            .ground_truth(&rf.camera)
-            .into_iter()
-            .map(|t| t.map(|(normal, depth)| PixelTruth { normal, depth }))
-            .collect();
+        let truth = crate::experiments::truth_of(&scene, &rf.camera);
         for &(n, d) in oracle_grid {
-            let normals = normal_set(n)?;
+            let normals = NormalSet::paper_subset(n)?;
             let depths = depths_linear_in_disparity(a.near, a.far, d)?;
             let alpha = oracle_alpha(&normals, &depths, &rf.camera, &truth);
             let mhi = Mhi::new(

@@ -121,7 +121,8 @@ pub fn ensure_synthetic(root: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn truth_of(scene: &mhi_data::Scene, cam: &Camera) -> Vec<Option<PixelTruth>> {
+/// Per reference pixel, the true surface normal and depth of a synthetic scene.
+pub fn truth_of(scene: &mhi_data::Scene, cam: &Camera) -> Vec<Option<PixelTruth>> {
     scene
         .ground_truth(cam)
         .into_iter()

@@ -137,7 +137,7 @@ pub fn render(a: &RenderArgs) -> anyhow::Result<()> {
         }
         None => (
             sweep_mhi(
-                &crate::eval::normal_set(a.normals)?,
+                &mhi_geom::NormalSet::paper_subset(a.normals)?,
                 &depths_linear_in_disparity(a.near, a.far, a.planes)?,
                 &rf.camera,
                 &rf.image,

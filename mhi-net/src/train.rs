@@ -465,15 +465,24 @@ impl Trainer {
         } else {
             2
         };
-        let volume = self.cost_volume(&sample)?;
-        let mut times = StepTimes {
-            volume_ms: ms(t0),
-            ..StepTimes::default()
+        let mut times = StepTimes::default();
+        let t1;
+        let alpha = if phase == 1 {
+            let volume = self.cost_volume(&sample)?;
+            times.volume_ms = ms(t0);
+            t1 = Instant::now();
+            let (n, d) = (self.normals.len(), self.depths.len());
+            let (w, h) = (self.config.width as usize, self.config.height as usize);
+            self.stage1.forward(volume).reshape([n * d, 1, h, w])
+        } else {
+            // Frozen: no graph is recorded (a recorded graph that is never backpropagated
+            // stays in memory: 100 MB per step here).
+            let volume = self.cost_volume_on(&sample, &self.plain())?;
+            times.volume_ms = ms(t0);
+            t1 = Instant::now();
+            self.frozen_alphas_of(volume).autodiff()
         };
-        let (n, d) = (self.normals.len(), self.depths.len());
-        let (w, h) = (self.config.width as usize, self.config.height as usize);
-        let t1 = Instant::now();
-        let alpha = self.stage1.forward(volume).reshape([n * d, 1, h, w]);
+        let n = self.normals.len();
         times.stage1_ms = ms(t1);
         let t2 = Instant::now();
         let RenderInputs {
@@ -481,7 +490,7 @@ impl Trainer {
             color,
             soft,
             target,
-        } = self.render_inputs(&sample)?;
+        } = self.render_inputs(&sample, &self.device)?;
         let (loss, output) = if phase == 1 {
             let (_, mni) = render_shared(alpha, color, &geom, soft);
             times.render_ms = ms(t2);
@@ -490,9 +499,9 @@ impl Trainer {
             times.loss_ms = ms(t3);
             (loss, mni)
         } else {
-            let (_, mni) = render_shared(alpha.detach(), color, &geom, soft.clone());
+            let (_, mni) = render_shared(alpha, color, &geom, soft.clone());
             let mni = mni.detach();
-            let image = self.learned_blend(mni, soft);
+            let image = learned_blend(&self.blend, mni, soft);
             times.render_ms = ms(t2);
             let t3 = Instant::now();
             let loss = self.loss.compute(image.clone(), target.clone())?;
@@ -531,59 +540,44 @@ impl Trainer {
         Ok(report)
     }
 
-    /// Stage 1's alphas for a sample, outside the autodiff graph.
+    /// The training device without autodiff: frozen networks and evaluation run there, so they
+    /// record no graph.
+    fn plain(&self) -> Device {
+        self.device.clone().without_autodiff()
+    }
+
+    /// Stage 1's alphas from a cost volume on the plain device, recording no graph.
     ///
     /// # Shapes
-    /// returns `[N·D, 1, H, W]`
-    fn frozen_alphas(&self, s: &Sample) -> crate::Result<Tensor<4>> {
-        let (n, d) = (self.normals.len(), self.depths.len());
-        let (w, h) = (self.config.width as usize, self.config.height as usize);
-        Ok(self
-            .stage1
-            .forward(self.cost_volume(s)?)
+    /// `[N, 6, D, H, W]` → `[N·D, 1, H, W]`
+    fn frozen_alphas_of(&self, volume: Tensor<5>) -> Tensor<4> {
+        let [n, _, d, h, w] = volume.dims();
+        self.stage1
+            .valid()
+            .forward(volume)
             .reshape([n * d, 1, h, w])
-            .detach())
     }
 
-    /// Stage 2: the blending network's weights applied to the multi-normal images.
-    ///
-    /// # Shapes
-    /// `mni`: `[N, 3, H, W]`, `soft`: `[N, 1, H, W]` → `[1, 3, H, W]`
-    fn learned_blend(&self, mni: Tensor<4>, soft: Tensor<4>) -> Tensor<4> {
-        let [n, _, h, w] = mni.dims();
-        let input = Tensor::cat(
-            vec![
-                mni.clone().reshape([1, 3 * n, h, w]),
-                soft.reshape([1, n, h, w]),
-            ],
-            1,
-        );
-        let weights = self.blend.forward(input).reshape([n, 1, h, w]);
-        mhi_render::diff::blend(mni, weights)
-    }
-
-    /// The constant tensors of rendering a sample: warp grids, reference colour, Soft weights
-    /// and the target image.
-    fn render_inputs(&self, s: &Sample) -> crate::Result<RenderInputs> {
+    /// The constant tensors of rendering a sample on `device`: warp grids, reference colour,
+    /// Soft weights and the target image.
+    fn render_inputs(&self, s: &Sample, device: &Device) -> crate::Result<RenderInputs> {
         let (r, t) = (&s.reference.camera, &s.target.camera);
         Ok(RenderInputs {
-            geom: WarpGeometry::new(&self.normals, &self.depths, r, t, &self.device)?,
-            color: image_to_tensor(&s.reference.image, &self.device),
-            soft: heuristic_weights_tensor(&self.normals, r, t, BlendHeuristic::Soft, &self.device),
-            target: image_to_tensor(&s.target.image, &self.device),
+            geom: WarpGeometry::new(&self.normals, &self.depths, r, t, device)?,
+            color: image_to_tensor(&s.reference.image, device),
+            soft: heuristic_weights_tensor(&self.normals, r, t, BlendHeuristic::Soft, device),
+            target: image_to_tensor(&s.target.image, device),
         })
     }
 
     /// The oriented cost volume `[N, 6, D, H, W]`: per normal and plane, the reference image and
     /// the source image warped onto that plane.
     pub fn cost_volume(&self, s: &Sample) -> crate::Result<Tensor<5>> {
-        crate::model::cost_volume(
-            &self.normals,
-            &self.depths,
-            &s.reference,
-            &s.source,
-            &self.device,
-        )
+        self.cost_volume_on(s, &self.device)
+    }
+
+    fn cost_volume_on(&self, s: &Sample, device: &Device) -> crate::Result<Tensor<5>> {
+        crate::model::cost_volume(&self.normals, &self.depths, &s.reference, &s.source, device)
     }
 
     fn append_log(&self, r: &StepReport) -> crate::Result<()> {
@@ -693,13 +687,14 @@ impl Trainer {
         let s = self.sample(step)?;
         let n = self.normals.len();
         let (w, h) = (self.config.width as usize, self.config.height as usize);
-        let alpha = self.frozen_alphas(&s)?;
+        let plain = self.plain();
+        let alpha = self.frozen_alphas_of(self.cost_volume_on(&s, &plain)?);
         let RenderInputs {
             geom,
             color,
             soft,
             target,
-        } = self.render_inputs(&s)?;
+        } = self.render_inputs(&s, &plain)?;
         let (_, mni) = render_shared(alpha, color, &geom, soft);
         let target = target.expand([n, 3, h, w]);
         scalar(self.loss.compute(mni, target)?)
@@ -714,18 +709,19 @@ impl Trainer {
         lpips: Option<&crate::backbone::Backbone>,
     ) -> crate::Result<EvalScores> {
         let mut e = EvalScores::default();
+        let plain = self.plain();
+        let blend = self.blend.valid();
         for k in 0..count {
             let s = self.sample(1_000_000 + k)?;
-            let alpha = self.frozen_alphas(&s)?;
+            let alpha = self.frozen_alphas_of(self.cost_volume_on(&s, &plain)?);
             let RenderInputs {
                 geom,
                 color,
                 soft,
                 target,
-            } = self.render_inputs(&s)?;
+            } = self.render_inputs(&s, &plain)?;
             let (soft_img, mni) = render_shared(alpha, color, &geom, soft.clone());
-            let img = self.learned_blend(mni, soft).detach();
-            let soft_img = soft_img.detach();
+            let img = learned_blend(&blend, mni, soft);
             e.psnr_learned += f64::from(psnr_of(img.clone(), target.clone(), false, 1)?);
             e.psnr_soft += f64::from(psnr_of(soft_img.clone(), target.clone(), false, 1)?);
             if let Some(net) = lpips {
@@ -749,6 +745,23 @@ impl Trainer {
         let e = self.evaluate_scores(count, None)?;
         Ok((e.psnr_learned, e.psnr_soft))
     }
+}
+
+/// Stage 2: the blending network's weights applied to the multi-normal images.
+///
+/// # Shapes
+/// `mni`: `[N, 3, H, W]`, `soft`: `[N, 1, H, W]` → `[1, 3, H, W]`
+fn learned_blend(blend: &BlendNet, mni: Tensor<4>, soft: Tensor<4>) -> Tensor<4> {
+    let [n, _, h, w] = mni.dims();
+    let input = Tensor::cat(
+        vec![
+            mni.clone().reshape([1, 3 * n, h, w]),
+            soft.reshape([1, n, h, w]),
+        ],
+        1,
+    );
+    let weights = blend.forward(input).reshape([n, 1, h, w]);
+    mhi_render::diff::blend(mni, weights)
 }
 
 /// Held-out scores of a model (see [`Trainer::evaluate_scores`]).

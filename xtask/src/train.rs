@@ -139,7 +139,7 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
     let lpips = mhi_net::backbone::Backbone::load(
         &weights,
         mhi_net::backbone::Net::Alex,
-        &self::device(&a.backend)?.autodiff(),
+        &self::device(&a.backend)?,
     )
     .ok();
     let untrained = if trainer.step_index() == 0 {

@@ -55,10 +55,10 @@ pub struct TrainConfig {
     #[config(default = 100.0)]
     pub far: f64,
     /// Steps of phase 1 (stage 1 on every multi-normal image).
-    #[config(default = 160)]
+    #[config(default = 280)]
     pub phase1_steps: usize,
     /// Steps of phase 2 (blending network, stage 1 frozen).
-    #[config(default = 100)]
+    #[config(default = 140)]
     pub phase2_steps: usize,
     /// Write a checkpoint every this many steps (and at the end).
     #[config(default = 50)]
@@ -66,8 +66,9 @@ pub struct TrainConfig {
     /// Held-out samples scored at every checkpoint (`val.csv`; 0 turns it off).
     #[config(default = 4)]
     pub val_samples: usize,
-    /// Factor of the VGG feature term of the perceptual loss (see `loss::VGG_FEATURE_SCALE`).
-    #[config(default = 0.226)]
+    /// Factor of the VGG feature term of the perceptual loss (see
+    /// `loss::DEFAULT_PERCEPTUAL_WEIGHT`).
+    #[config(default = 0.01)]
     pub perceptual_weight: f32,
     /// The loss actually used (filled in by the trainer).
     #[config(default = "String::new()")]
@@ -88,7 +89,8 @@ impl TrainConfig {
     }
 
     /// Parse a run's `config.json`; runs written before `val_samples` existed get 0 (they
-    /// logged no validation).
+    /// logged no validation), and runs written before `perceptual_weight` existed get the factor
+    /// they trained with, `loss::VGG_FEATURE_SCALE`.
     pub fn from_json(text: &str, path: &Path) -> crate::Result<Self> {
         let bad = |e: serde_json::Error| Error::Config(format!("{}: {e}", path.display()));
         let mut v: serde_json::Value = serde_json::from_str(text).map_err(bad)?;

@@ -39,8 +39,11 @@ pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<se
     let depths = mhi_geom::depths_linear_in_disparity(config.near, config.far, config.planes)?;
     let (n, d) = (normals.len(), depths.len());
     let (w, h) = (config.width as usize, config.height as usize);
-    let (loss, why) =
-        TrainLoss::from_weights(Some(weights), mhi_net::loss::VGG_FEATURE_SCALE, &device);
+    let (loss, why) = TrainLoss::from_weights(
+        Some(weights),
+        mhi_net::loss::DEFAULT_PERCEPTUAL_WEIGHT,
+        &device,
+    );
     if let Some(why) = why {
         eprintln!("note: VGG16 weights unavailable ({why}); timing the L1 + SSIM loss");
     }

@@ -72,7 +72,7 @@ pub struct TrainArgs {
     pub loss: String,
     /// Factor of the VGG feature term against the pixel L1 in the perceptual loss. The default
     /// was measured to improve both PSNR and LPIPS at the default budget; the paper's scale
-    /// (0.226) gains a little LPIPS but costs 0.7 dB at this budget (see
+    /// (0.226) gains a little LPIPS but costs 1.0 dB at this budget (see
     /// `mhi_net::loss::DEFAULT_PERCEPTUAL_WEIGHT`).
     #[arg(long, default_value_t = mhi_net::loss::DEFAULT_PERCEPTUAL_WEIGHT)]
     pub perceptual_weight: f32,

@@ -68,7 +68,7 @@ pub struct TrainConfig {
     pub val_samples: usize,
     /// Factor of the VGG feature term of the perceptual loss (see
     /// `loss::DEFAULT_PERCEPTUAL_WEIGHT`).
-    #[config(default = 0.01)]
+    #[config(default = "crate::loss::DEFAULT_PERCEPTUAL_WEIGHT")]
     pub perceptual_weight: f32,
     /// The loss actually used (filled in by the trainer).
     #[config(default = "String::new()")]
@@ -467,21 +467,22 @@ impl Trainer {
         } else {
             2
         };
-        let mut times = StepTimes::default();
-        let t1;
-        let alpha = if phase == 1 {
-            let volume = self.cost_volume(&sample)?;
-            times.volume_ms = ms(t0);
-            t1 = Instant::now();
-            let (n, d) = (self.normals.len(), self.depths.len());
-            let (w, h) = (self.config.width as usize, self.config.height as usize);
-            self.stage1.forward(volume).reshape([n * d, 1, h, w])
+        // Phase 2 runs the frozen stage 1 on the plain device: a graph recorded and never
+        // backpropagated stays in memory (100 MB per step here).
+        let device = if phase == 1 {
+            self.device.clone()
         } else {
-            // Frozen: no graph is recorded (a recorded graph that is never backpropagated
-            // stays in memory: 100 MB per step here).
-            let volume = self.cost_volume_on(&sample, &self.plain())?;
-            times.volume_ms = ms(t0);
-            t1 = Instant::now();
+            self.plain()
+        };
+        let volume = self.cost_volume_on(&sample, &device)?;
+        let mut times = StepTimes {
+            volume_ms: ms(t0),
+            ..StepTimes::default()
+        };
+        let t1 = Instant::now();
+        let alpha = if phase == 1 {
+            alphas_of(&self.stage1, volume)
+        } else {
             self.frozen_alphas_of(volume).autodiff()
         };
         let n = self.normals.len();
@@ -553,11 +554,7 @@ impl Trainer {
     /// # Shapes
     /// `[N, 6, D, H, W]` → `[N·D, 1, H, W]`
     fn frozen_alphas_of(&self, volume: Tensor<5>) -> Tensor<4> {
-        let [n, _, d, h, w] = volume.dims();
-        self.stage1
-            .valid()
-            .forward(volume)
-            .reshape([n * d, 1, h, w])
+        alphas_of(&self.stage1.valid(), volume)
     }
 
     /// The constant tensors of rendering a sample on `device`: warp grids, reference colour,
@@ -747,6 +744,15 @@ impl Trainer {
         let e = self.evaluate_scores(count, None)?;
         Ok((e.psnr_learned, e.psnr_soft))
     }
+}
+
+/// Stage 1's alphas, one layer per normal and plane.
+///
+/// # Shapes
+/// `[N, 6, D, H, W]` → `[N·D, 1, H, W]`
+fn alphas_of(stage1: &Stage1, volume: Tensor<5>) -> Tensor<4> {
+    let [n, _, d, h, w] = volume.dims();
+    stage1.forward(volume).reshape([n * d, 1, h, w])
 }
 
 /// Stage 2: the blending network's weights applied to the multi-normal images.

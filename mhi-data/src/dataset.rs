@@ -62,6 +62,46 @@ pub struct Dataset {
     pub missing_frames: usize,
 }
 
+/// How triplets are drawn from a sequence: its frames are either dense video or a sparse capture.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Sampling {
+    /// Consecutive video frames (20–100 frames per second): Stereo Magnification's clips of
+    /// [`crate::CLIP_LEN`] frames at a random stride in [`crate::STRIDE_RANGE`].
+    Video,
+    /// A sparse capture (a few dozen photos): triplets from neighbouring views, clips of at most
+    /// [`crate::SPARSE_CLIP_LEN`] consecutive views.
+    Sparse,
+}
+
+impl Sequence {
+    /// The directory that holds the sequence's frames (and, for synthetic scenes, `scene.json`).
+    pub fn dir(&self) -> PathBuf {
+        self.camera_file.with_extension("")
+    }
+
+    /// Video when the median gap between consecutive timestamps lies between 10 and 50 ms
+    /// (RealEstate10K clips: 33 or 42 ms), a sparse capture otherwise (the converted LLFF and
+    /// Strecha captures number their views 100 ms apart; hand-made files often count 0, 1, 2).
+    pub fn sampling(&self) -> Sampling {
+        let mut gaps: Vec<u64> = self
+            .frames
+            .windows(2)
+            .map(|w| w[1].row.timestamp.abs_diff(w[0].row.timestamp))
+            .collect();
+        if gaps.is_empty() {
+            return Sampling::Sparse;
+        }
+        gaps.sort_unstable();
+        let median = gaps[gaps.len() / 2];
+        if (10_000..=50_000).contains(&median) {
+            Sampling::Video
+        } else {
+            Sampling::Sparse
+        }
+    }
+}
+
 /// Image file extensions accepted for frames.
 const EXTENSIONS: [&str; 3] = ["png", "jpg", "jpeg"];
 
@@ -159,6 +199,79 @@ impl Dataset {
         }
         Ok(out)
     }
+}
+
+impl Dataset {
+    /// Open the same split of several roots as one dataset. With more than one root, sequence
+    /// names are qualified by their root's folder name (`llff-6/room`), so triplet indices stay
+    /// unambiguous; with one root this is [`Dataset::open`].
+    pub fn open_many(roots: &[PathBuf], split: &str, min_frames: usize) -> Result<Self> {
+        let Some(first) = roots.first() else {
+            return Err(Error::InvalidArgument("no dataset root given".into()));
+        };
+        if roots.len() == 1 {
+            return Self::open(first, split, min_frames);
+        }
+        let mut out: Option<Self> = None;
+        for root in roots {
+            let mut ds = Self::open(root, split, min_frames)?;
+            let prefix = root_name(root);
+            for s in &mut ds.sequences {
+                s.name = format!("{prefix}/{}", s.name);
+            }
+            match &mut out {
+                None => out = Some(ds),
+                Some(o) => {
+                    o.sequences.append(&mut ds.sequences);
+                    o.warnings.append(&mut ds.warnings);
+                    o.skipped_sequences += ds.skipped_sequences;
+                    o.missing_frames += ds.missing_frames;
+                }
+            }
+        }
+        let out = out.expect("at least one root");
+        let mut names: Vec<&str> = out.sequences.iter().map(|s| s.name.as_str()).collect();
+        names.sort_unstable();
+        if let Some(w) = names.windows(2).find(|w| w[0] == w[1]) {
+            return Err(Error::Dataset {
+                path: out.dir.clone(),
+                fault: format!(
+                    "two roots share the folder name of sequence {:?}; give roots distinct names",
+                    w[0]
+                ),
+            });
+        }
+        Ok(out)
+    }
+
+    /// Keep only the named sequences (`keep = true`) or all but them (`keep = false`). Every
+    /// name must be a sequence of the dataset: a typo is an error listing the names there are.
+    pub fn select(mut self, names: &[String], keep: bool) -> Result<Self> {
+        for n in names {
+            if !self.sequences.iter().any(|s| &s.name == n) {
+                let have: Vec<&str> = self.sequences.iter().map(|s| s.name.as_str()).collect();
+                return Err(Error::Dataset {
+                    path: self.dir.clone(),
+                    fault: format!(
+                        "no sequence named {n:?}; the sequences are: {}",
+                        have.join(", ")
+                    ),
+                });
+            }
+        }
+        self.sequences
+            .retain(|s| names.iter().any(|n| n == &s.name) == keep);
+        Ok(self)
+    }
+}
+
+/// The folder name that stands for a root (its last path component).
+pub fn root_name(root: &Path) -> String {
+    root.components()
+        .next_back()
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .filter(|s| !s.is_empty() && s != "." && s != "..")
+        .unwrap_or_else(|| root.display().to_string())
 }
 
 /// Map timestamp → image path for the frames in `seq_dir` (empty if the directory is missing).

@@ -29,6 +29,7 @@
 
 mod dataset;
 mod error;
+mod mix;
 mod re10k;
 mod synth;
 mod triplets;
@@ -37,17 +38,18 @@ use std::io::Write as _;
 use std::path::Path;
 
 pub use dataset::{
-    Dataset, Fit, Frame, LoadedFrame, Sequence, Warning, check_same_size, load_frame, read_rgb,
-    to_f32, to_u8,
+    Dataset, Fit, Frame, LoadedFrame, Sampling, Sequence, Warning, check_same_size, load_frame,
+    read_rgb, root_name, to_f32, to_u8,
 };
 pub use error::{Error, Result};
+pub use mix::{DataMix, DataSource};
 pub use re10k::{COLUMNS, CameraFile, CameraRow};
 pub use synth::{
     Hit, Scene, Surface, SynthConfig, SynthSummary, Texture, generate, load_scene, make_scene,
 };
 pub use triplets::{
-    CLIP_LEN, RotationBin, STRIDE_RANGE, Triplet, TripletIndex, TripletKind, max_rotation_deg,
-    sample_clip, sample_training_triplet,
+    CLIP_LEN, RotationBin, SPARSE_CLIP_LEN, STRIDE_RANGE, Triplet, TripletIndex, TripletKind,
+    max_rotation_deg, sample_clip, sample_clip_for, sample_training_triplet,
 };
 
 /// Write `bytes` to `path` atomically: to a temporary file beside it, then renamed into place,

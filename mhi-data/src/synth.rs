@@ -33,6 +33,10 @@ pub struct SynthConfig {
     /// Fraction of scenes written to the `test` split (the rest go to `train`); at least one
     /// scene goes to each split when there are two or more scenes.
     pub test_fraction: f64,
+    /// Fraction of scenes written to the `val` split (validation: what picks a default looks
+    /// here, never at `test`); taken from the scenes before the test ones, leaving at least one
+    /// scene for `train`.
+    pub val_fraction: f64,
     /// Samples per pixel along each axis (2 → 4 samples per pixel).
     pub supersample: u32,
 }
@@ -46,6 +50,7 @@ impl Default for SynthConfig {
             height: 256,
             seed: 0,
             test_fraction: 0.2,
+            val_fraction: 0.1,
             supersample: 2,
         }
     }
@@ -75,6 +80,13 @@ impl SynthConfig {
                 self.test_fraction
             ));
         }
+        if !(0.0..=1.0).contains(&self.val_fraction) || self.val_fraction + self.test_fraction > 1.0
+        {
+            return bad(format!(
+                "validation fraction {} must lie in [0, 1] and leave room for the test fraction {}",
+                self.val_fraction, self.test_fraction
+            ));
+        }
         if !(1..=8).contains(&self.supersample) {
             return bad(format!(
                 "supersampling {} must be between 1 and 8",
@@ -82,6 +94,18 @@ impl SynthConfig {
             ));
         }
         Ok(())
+    }
+
+    /// Number of scenes in the validation split (0 when fewer than two scenes are left after
+    /// the test split: training keeps at least one).
+    pub fn val_scenes(&self) -> usize {
+        let left = self.scenes - self.test_scenes();
+        let n = (self.scenes as f64 * self.val_fraction).round() as usize;
+        if self.val_fraction > 0.0 && left >= 2 {
+            n.clamp(1, left - 1)
+        } else {
+            0
+        }
     }
 
     /// Number of scenes in the test split.
@@ -825,6 +849,8 @@ pub fn make_scene(config: &SynthConfig, index: usize) -> Result<Scene> {
 pub struct SynthSummary {
     /// Sequences written to `train`.
     pub train: Vec<String>,
+    /// Sequences written to `val`.
+    pub val: Vec<String>,
     /// Sequences written to `test`.
     pub test: Vec<String>,
     /// Frames rendered in all.
@@ -832,8 +858,8 @@ pub struct SynthSummary {
 }
 
 /// Generate a dataset in RealEstate10K layout under `out`:
-/// `out/{train,test}/<scene>.txt`, `out/{train,test}/<scene>/<timestamp>.png` and
-/// `out/{train,test}/<scene>/scene.json`. Frames render in parallel; `on_frame` is called after
+/// `out/{train,val,test}/<scene>.txt`, `out/{train,val,test}/<scene>/<timestamp>.png` and
+/// `out/{train,val,test}/<scene>/scene.json`. Frames render in parallel; `on_frame` is called after
 /// each one (for a progress bar). Existing files with the same names are replaced atomically;
 /// callers decide whether `out` may already hold data.
 pub fn generate(
@@ -843,10 +869,13 @@ pub fn generate(
 ) -> Result<SynthSummary> {
     config.validate()?;
     let n_test = config.test_scenes();
+    let n_val = config.val_scenes();
     let scenes: Vec<(Scene, PathBuf)> = (0..config.scenes)
         .map(|i| {
             let split = if i >= config.scenes - n_test {
                 "test"
+            } else if i >= config.scenes - n_test - n_val {
+                "val"
             } else {
                 "train"
             };
@@ -887,6 +916,7 @@ pub fn generate(
     };
     Ok(SynthSummary {
         train: names("train"),
+        val: names("val"),
         test: names("test"),
         frames: jobs.len(),
     })

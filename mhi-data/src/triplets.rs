@@ -8,13 +8,15 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::dataset::{Dataset, Sequence};
+use crate::dataset::{Dataset, Sampling, Sequence};
 use crate::error::{Error, Result};
 
 /// Frames per training clip (Stereo Magnification).
 pub const CLIP_LEN: usize = 10;
 /// Range of the random stride between clip frames (Stereo Magnification).
 pub const STRIDE_RANGE: std::ops::RangeInclusive<usize> = 3..=10;
+/// Views per clip of a sparse capture: triplets come from neighbouring views.
+pub const SPARSE_CLIP_LEN: usize = 5;
 
 /// Whether the target lies between the two input views in time or beyond them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -88,6 +90,11 @@ pub struct Triplet {
     pub max_rotation_deg: f64,
     /// The bin of `max_rotation_deg`.
     pub bin: RotationBin,
+    /// Timestamps of the reference, source and target frames, so that an index reused after
+    /// frames were added or deleted is caught rather than scored against other frames (absent
+    /// in indices written before they were recorded).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timestamps: Option<[u64; 3]>,
 }
 
 /// Largest pairwise relative rotation angle of three poses, in degrees.
@@ -109,7 +116,9 @@ fn make(
 ) -> Triplet {
     let pose = |i: usize| &seq.frames[i].row.cam_from_world;
     let max_rotation_deg = max_rotation_deg([pose(reference), pose(source), pose(target)]);
+    let ts = |i: usize| seq.frames[i].row.timestamp;
     Triplet {
+        timestamps: Some([ts(reference), ts(source), ts(target)]),
         sequence: seq.name.clone(),
         reference,
         source,
@@ -140,6 +149,27 @@ pub fn sample_clip(n_frames: usize, rng: &mut impl Rng) -> Vec<usize> {
         clip.reverse();
     }
     clip
+}
+
+/// A clip of `seq` drawn by its [`Sampling`]: Stereo Magnification's clip for video, up to
+/// [`SPARSE_CLIP_LEN`] consecutive views (randomly reversed) for a sparse capture.
+pub fn sample_clip_for(seq: &Sequence, rng: &mut impl Rng) -> Vec<usize> {
+    let n = seq.frames.len();
+    match seq.sampling() {
+        Sampling::Video => sample_clip(n, rng),
+        Sampling::Sparse => {
+            if n == 0 {
+                return Vec::new();
+            }
+            let len = SPARSE_CLIP_LEN.min(n);
+            let start = rng.random_range(0..=n - len);
+            let mut clip: Vec<usize> = (start..start + len).collect();
+            if rng.random_bool(0.5) {
+                clip.reverse();
+            }
+            clip
+        }
+    }
 }
 
 /// Pick (reference, source, target) positions in a clip of `len` frames for the given kind, or
@@ -179,7 +209,7 @@ fn pick(len: usize, kind: TripletKind, rng: &mut impl Rng) -> Option<(usize, usi
 
 /// One training triplet in Stereo Magnification's scheme; `kind` is drawn 50/50.
 pub fn sample_training_triplet(seq: &Sequence, rng: &mut impl Rng) -> Option<Triplet> {
-    let clip = sample_clip(seq.frames.len(), rng);
+    let clip = sample_clip_for(seq, rng);
     let kind = if rng.random_bool(0.5) {
         TripletKind::Interpolation
     } else {
@@ -212,7 +242,7 @@ impl TripletIndex {
                 } else {
                     TripletKind::Extrapolation
                 };
-                let clip = sample_clip(seq.frames.len(), &mut rng);
+                let clip = sample_clip_for(seq, &mut rng);
                 if let Some((r, s, t)) = pick(clip.len(), kind, &mut rng) {
                     triplets.push(make(seq, clip[r], clip[s], clip[t], kind));
                     k += 1;
@@ -248,6 +278,31 @@ impl TripletIndex {
                 let n = s.frames.len();
                 t.reference < n && t.source < n && t.target < n
             });
+            if ok && (t.reference == t.source || t.target == t.reference || t.target == t.source) {
+                return Err(Error::Dataset {
+                    path: index_path.to_path_buf(),
+                    fault: format!(
+                        "triplet {i} of sequence {:?} uses one frame twice (reference {}, source {}, target {}): a view synthesised from itself says nothing",
+                        t.sequence, t.reference, t.source, t.target
+                    ),
+                });
+            }
+            if let (true, Some(ts), Some(s)) = (ok, t.timestamps, seq) {
+                let now = [t.reference, t.source, t.target].map(|k| s.frames[k].row.timestamp);
+                if now != ts {
+                    return Err(Error::Dataset {
+                        path: index_path.to_path_buf(),
+                        fault: format!(
+                            "triplet {i} of sequence {:?} was drawn for frames with timestamps {ts:?}, but frames ({}, {}, {}) of {} now have {now:?}: frames were added or deleted since the index was made; draw a new index",
+                            t.sequence,
+                            t.reference,
+                            t.source,
+                            t.target,
+                            dataset.dir.display()
+                        ),
+                    });
+                }
+            }
             if !ok {
                 return Err(Error::Dataset {
                     path: index_path.to_path_buf(),

@@ -12,6 +12,7 @@ fn tiny_dataset(dir: &Path) {
         height: 32,
         seed: 2,
         test_fraction: 0.0,
+        val_fraction: 0.0,
         ..SynthConfig::default()
     };
     generate(&config, dir, &|| {}).unwrap();

@@ -140,8 +140,12 @@ fn generation_is_deterministic_and_written_in_re10k_layout() {
     let s1 = generate(&config, d1.path(), &|| {}).unwrap();
     let s2 = generate(&config, d2.path(), &|| {}).unwrap();
     assert_eq!(s1, s2);
-    assert_eq!((s1.train.len(), s1.test.len(), s1.frames), (2, 1, 12));
-    for split in ["train", "test"] {
+    // 3 scenes: one each for train, val (validation) and test.
+    assert_eq!(
+        (s1.train.len(), s1.val.len(), s1.test.len(), s1.frames),
+        (1, 1, 1, 12)
+    );
+    for split in ["train", "val", "test"] {
         let a = Dataset::open(d1.path(), split, 3).unwrap();
         let b = Dataset::open(d2.path(), split, 3).unwrap();
         assert!(a.warnings.is_empty(), "{:?}", a.warnings);

@@ -14,11 +14,15 @@
 //! assert!(mhi_eval::ssim(&a, &a).unwrap() > 0.999_999);
 //! ```
 
+pub mod coverage;
 mod metrics;
 pub mod plot;
 pub mod report;
+pub mod stats;
 
-pub use metrics::{MAX_PSNR, psnr, psnr_masked, ssim};
+pub use coverage::covered_mask;
+pub use metrics::{MAX_PSNR, MIN_SSIM_SIDE, psnr, psnr_masked, ssim, ssim_masked};
+pub use stats::Bootstrap;
 
 /// Why a metric could not be computed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

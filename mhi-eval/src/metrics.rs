@@ -23,6 +23,17 @@ fn check(a: &Rgb32FImage, b: &Rgb32FImage) -> Result<()> {
     Ok(())
 }
 
+fn check_mask(a: &Rgb32FImage, mask: &[bool]) -> Result<()> {
+    if mask.len() != (a.width() as usize) * (a.height() as usize) {
+        return Err(Error::InvalidImage(format!(
+            "mask has {} flags for {} pixels",
+            mask.len(),
+            a.width() * a.height()
+        )));
+    }
+    Ok(())
+}
+
 fn clip(v: f32) -> f64 {
     f64::from(v.clamp(0.0, 1.0))
 }
@@ -46,13 +57,7 @@ pub fn psnr(a: &Rgb32FImage, b: &Rgb32FImage) -> Result<f64> {
 /// mask selects no pixel.
 pub fn psnr_masked(a: &Rgb32FImage, b: &Rgb32FImage, mask: &[bool]) -> Result<Option<f64>> {
     check(a, b)?;
-    if mask.len() != (a.width() * a.height()) as usize {
-        return Err(Error::InvalidImage(format!(
-            "mask has {} flags for {} pixels",
-            mask.len(),
-            a.width() * a.height()
-        )));
-    }
+    check_mask(a, mask)?;
     let (mut sum, mut n) = (0.0, 0usize);
     for (p, (x, y)) in a.as_raw().chunks(3).zip(b.as_raw().chunks(3)).enumerate() {
         if mask[p] {
@@ -113,18 +118,53 @@ fn filter(src: &[f64], w: usize, h: usize, k: &[f64; 11]) -> Vec<f64> {
 /// `structural_similarity(a, b, gaussian_weights=True, sigma=1.5, use_sample_covariance=False,
 /// data_range=1, channel_axis=-1)`: Gaussian 11 × 11 window (σ = 1.5), K1 = 0.01, K2 = 0.03, the
 /// SSIM map averaged over the pixels at least 5 from the border, then over channels. Images need
-/// at least 11 × 11 pixels.
+/// at least [`MIN_SSIM_SIDE`] × [`MIN_SSIM_SIDE`] pixels.
 pub fn ssim(a: &Rgb32FImage, b: &Rgb32FImage) -> Result<f64> {
+    let map = ssim_map(a, b)?;
+    let (w, h) = (a.width() as usize, a.height() as usize);
+    let (mut sum, mut count) = (0.0, 0usize);
+    for py in 5..h - 5 {
+        for px in 5..w - 5 {
+            sum += map[py * w + px];
+            count += 1;
+        }
+    }
+    Ok(sum / count as f64)
+}
+
+/// SSIM averaged over the pixels where `mask` is true and that lie at least 5 pixels from the
+/// border (the same window and crop as [`ssim`]); `None` when no such pixel is selected.
+pub fn ssim_masked(a: &Rgb32FImage, b: &Rgb32FImage, mask: &[bool]) -> Result<Option<f64>> {
+    check_mask(a, mask)?;
+    let map = ssim_map(a, b)?;
+    let (w, h) = (a.width() as usize, a.height() as usize);
+    let (mut sum, mut count) = (0.0, 0usize);
+    for py in 5..h - 5 {
+        for px in 5..w - 5 {
+            if mask[py * w + px] {
+                sum += map[py * w + px];
+                count += 1;
+            }
+        }
+    }
+    Ok((count > 0).then(|| sum / count as f64))
+}
+
+/// The smallest side SSIM accepts: its Gaussian window is 11 pixels wide.
+pub const MIN_SSIM_SIDE: u32 = 11;
+
+/// The per-pixel SSIM map, averaged over the three channels (row-major, one value per pixel).
+fn ssim_map(a: &Rgb32FImage, b: &Rgb32FImage) -> Result<Vec<f64>> {
     check(a, b)?;
     let (w, h) = (a.width() as usize, a.height() as usize);
-    if w < 11 || h < 11 {
+    if a.width() < MIN_SSIM_SIDE || a.height() < MIN_SSIM_SIDE {
         return Err(Error::InvalidImage(format!(
-            "SSIM needs at least 11×11 pixels, got {w}×{h}"
+            "SSIM needs at least {MIN_SSIM_SIDE}×{MIN_SSIM_SIDE} pixels, got {w}×{h}"
         )));
     }
     let k = gaussian_kernel();
     let (c1, c2) = ((0.01_f64).powi(2), (0.03_f64).powi(2));
-    let mut total = 0.0;
+    let mut map = vec![0.0; w * h];
     for ch in 0..3 {
         let x: Vec<f64> = a.pixels().map(|p| clip(p.0[ch])).collect();
         let y: Vec<f64> = b.pixels().map(|p| clip(p.0[ch])).collect();
@@ -137,21 +177,15 @@ pub fn ssim(a: &Rgb32FImage, b: &Rgb32FImage) -> Result<f64> {
             filter(&yy, w, h, &k),
             filter(&xy, w, h, &k),
         );
-        let mut sum = 0.0;
-        let mut count = 0usize;
-        for py in 5..h - 5 {
-            for px in 5..w - 5 {
-                let i = py * w + px;
-                let (mx, my) = (ux[i], uy[i]);
-                let vx = uxx[i] - mx * mx;
-                let vy = uyy[i] - my * my;
-                let vxy = uxy[i] - mx * my;
-                sum += ((2.0 * mx * my + c1) * (2.0 * vxy + c2))
-                    / ((mx * mx + my * my + c1) * (vx + vy + c2));
-                count += 1;
-            }
+        for (i, m) in map.iter_mut().enumerate() {
+            let (mx, my) = (ux[i], uy[i]);
+            let vx = uxx[i] - mx * mx;
+            let vy = uyy[i] - my * my;
+            let vxy = uxy[i] - mx * my;
+            *m += ((2.0 * mx * my + c1) * (2.0 * vxy + c2))
+                / ((mx * mx + my * my + c1) * (vx + vy + c2))
+                / 3.0;
         }
-        total += sum / count as f64;
     }
-    Ok(total / 3.0)
+    Ok(map)
 }

@@ -7,6 +7,8 @@ use std::fmt::Write as _;
 
 use serde::{Deserialize, Serialize};
 
+use crate::stats::Bootstrap;
+
 /// Rotation-bin labels in table order; `"all"` pools every bin.
 pub const BINS: [&str; 5] = ["0-2", "2-4", "4-8", ">8", "all"];
 /// Triplet kinds in table order; `"all"` pools both.
@@ -33,8 +35,15 @@ impl Times {
 }
 
 /// One scored novel view of one method.
+///
+/// Scores come twice: on the whole image (the papers' protocol) and on the *covered* region
+/// ([`crate::coverage`]): the target pixels the reference view sees on the farthest plane, one
+/// geometric mask per triplet shared by every method.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Measurement {
+    /// Index of the triplet in the evaluation (pairs the methods' scores of one view).
+    #[serde(default)]
+    pub triplet: usize,
     /// Method name (`learned`, `soft`, `hard`, `avg`, `mpi`, `sweep`, `oracle`, `nearest`).
     pub method: String,
     /// Normals N (0 for `nearest`).
@@ -55,6 +64,19 @@ pub struct Measurement {
     pub ssim: f64,
     /// LPIPS-alex v0.1, when the weights are available.
     pub lpips: Option<f64>,
+    /// PSNR over the covered pixels (`None` when no pixel is covered).
+    #[serde(default)]
+    pub psnr_covered: Option<f64>,
+    /// SSIM map averaged over the covered pixels.
+    #[serde(default)]
+    pub ssim_covered: Option<f64>,
+    /// LPIPS-alex of the render with its uncovered pixels replaced by the ground truth's (they
+    /// then contribute no difference), when the weights are available.
+    #[serde(default)]
+    pub lpips_covered: Option<f64>,
+    /// Fraction of the target's pixels that are covered.
+    #[serde(default)]
+    pub covered_fraction: f64,
     /// Time split.
     pub times: Times,
 }
@@ -74,26 +96,132 @@ pub struct Row {
     pub kind: String,
     /// Views averaged.
     pub count: usize,
-    /// Mean PSNR (dB).
+    /// Mean PSNR (dB) over the whole image.
     pub psnr: f64,
-    /// Mean SSIM.
+    /// 95 % bootstrap interval of `psnr` over triplets.
+    pub psnr_ci: [f64; 2],
+    /// Mean SSIM over the whole image.
     pub ssim: f64,
-    /// Mean LPIPS-alex (absent without weights).
+    /// Interval of `ssim`.
+    pub ssim_ci: [f64; 2],
+    /// Mean LPIPS-alex over the whole image (absent without weights).
     pub lpips: Option<f64>,
+    /// Interval of `lpips`.
+    pub lpips_ci: Option<[f64; 2]>,
+    /// Mean PSNR over the covered region (views with no covered pixel left out).
+    pub psnr_covered: Option<f64>,
+    /// Interval of `psnr_covered`.
+    pub psnr_covered_ci: Option<[f64; 2]>,
+    /// Mean SSIM over the covered region.
+    pub ssim_covered: Option<f64>,
+    /// Interval of `ssim_covered`.
+    pub ssim_covered_ci: Option<[f64; 2]>,
+    /// Mean LPIPS-alex with uncovered pixels taken from the ground truth.
+    pub lpips_covered: Option<f64>,
+    /// Interval of `lpips_covered`.
+    pub lpips_covered_ci: Option<[f64; 2]>,
+    /// Mean fraction of covered pixels.
+    pub covered_fraction: f64,
     /// Mean milliseconds per novel view (sum of the split below).
     pub ms_per_view: f64,
     /// Mean time split.
     pub times: Times,
 }
 
+/// A metric of a [`Measurement`], by name: what rows average and comparisons pair.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Metric {
+    /// PSNR over the covered region.
+    PsnrCovered,
+    /// SSIM over the covered region.
+    SsimCovered,
+    /// LPIPS with uncovered pixels from the ground truth.
+    LpipsCovered,
+    /// PSNR over the whole image.
+    Psnr,
+    /// SSIM over the whole image.
+    Ssim,
+    /// LPIPS over the whole image.
+    Lpips,
+}
+
+impl Metric {
+    /// Every metric, covered first.
+    pub const ALL: [Self; 6] = [
+        Self::PsnrCovered,
+        Self::SsimCovered,
+        Self::LpipsCovered,
+        Self::Psnr,
+        Self::Ssim,
+        Self::Lpips,
+    ];
+
+    /// The value of this metric in a measurement.
+    pub fn of(self, m: &Measurement) -> Option<f64> {
+        match self {
+            Self::PsnrCovered => m.psnr_covered,
+            Self::SsimCovered => m.ssim_covered,
+            Self::LpipsCovered => m.lpips_covered,
+            Self::Psnr => Some(m.psnr),
+            Self::Ssim => Some(m.ssim),
+            Self::Lpips => m.lpips,
+        }
+    }
+
+    /// Whether a larger value is better (PSNR, SSIM) or worse (LPIPS).
+    pub fn higher_is_better(self) -> bool {
+        !matches!(self, Self::LpipsCovered | Self::Lpips)
+    }
+
+    /// Name for tables.
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::PsnrCovered => "covered PSNR",
+            Self::SsimCovered => "covered SSIM",
+            Self::LpipsCovered => "covered LPIPS",
+            Self::Psnr => "PSNR",
+            Self::Ssim => "SSIM",
+            Self::Lpips => "LPIPS",
+        }
+    }
+
+    fn precision(self) -> usize {
+        match self {
+            Self::PsnrCovered | Self::Psnr => 2,
+            _ => 3,
+        }
+    }
+}
+
+/// A method and configuration: `(method, N, D)`.
+pub type Config = (String, usize, usize);
+
+fn key_of(m: &Measurement) -> Config {
+    (m.method.clone(), m.normals, m.planes)
+}
+
+/// Indices of `(bin, kind)` groups a measurement belongs to (its own and the pooled `all`s).
+fn groups_of(m: &Measurement) -> Vec<(usize, usize)> {
+    let b = BINS.iter().position(|x| *x == m.bin).unwrap_or(4);
+    let k = KINDS.iter().position(|x| *x == m.kind).unwrap_or(2);
+    let mut out = vec![(b, k)];
+    for g in [(b, 2), (4, k), (4, 2)] {
+        if !out.contains(&g) {
+            out.push(g);
+        }
+    }
+    out
+}
+
 /// Aggregate measurements into rows: for every method and (N, D), every bin including `all`
 /// and every kind including `all`; groups with no view are left out. Methods keep the order of
-/// their first measurement.
-pub fn aggregate(ms: &[Measurement]) -> Vec<Row> {
-    let mut order: Vec<(String, usize, usize)> = Vec::new();
+/// their first measurement. Every mean carries a bootstrap interval over the group's triplets.
+pub fn aggregate(ms: &[Measurement], boot: &Bootstrap) -> Vec<Row> {
+    let mut order: Vec<Config> = Vec::new();
     let mut groups: BTreeMap<(usize, usize, usize), Vec<&Measurement>> = BTreeMap::new();
     for m in ms {
-        let key = (m.method.clone(), m.normals, m.planes);
+        let key = key_of(m);
         let k = match order.iter().position(|o| *o == key) {
             Some(k) => k,
             None => {
@@ -101,18 +229,8 @@ pub fn aggregate(ms: &[Measurement]) -> Vec<Row> {
                 order.len() - 1
             }
         };
-        let bins = [BINS.iter().position(|b| *b == m.bin).unwrap_or(4), 4];
-        let kinds = [KINDS.iter().position(|b| *b == m.kind).unwrap_or(2), 2];
-        for (bi, b) in bins.iter().enumerate() {
-            if bi == 1 && *b == bins[0] {
-                continue;
-            }
-            for (ki, kk) in kinds.iter().enumerate() {
-                if ki == 1 && *kk == kinds[0] {
-                    continue;
-                }
-                groups.entry((k, *b, *kk)).or_default().push(m);
-            }
+        for (b, kk) in groups_of(m) {
+            groups.entry((k, b, kk)).or_default().push(m);
         }
     }
     groups
@@ -120,11 +238,28 @@ pub fn aggregate(ms: &[Measurement]) -> Vec<Row> {
         .map(|((k, b, kk), v)| {
             let n = v.len() as f64;
             let mean = |f: &dyn Fn(&Measurement) -> f64| v.iter().map(|m| f(m)).sum::<f64>() / n;
-            let lpips = if v.iter().all(|m| m.lpips.is_some()) {
-                Some(mean(&|m| m.lpips.unwrap_or(0.0)))
-            } else {
-                None
+            // A metric's mean and interval over the views that have it; `None` unless every
+            // view has it (LPIPS) or at least one does (covered metrics, absent where nothing
+            // is covered).
+            let stat = |metric: Metric, need_all: bool| -> Option<(f64, [f64; 2])> {
+                let vals: Vec<f64> = v.iter().filter_map(|m| metric.of(m)).collect();
+                if vals.is_empty() || (need_all && vals.len() < v.len()) {
+                    return None;
+                }
+                boot.mean_ci(&vals)
             };
+            let full = |metric: Metric| {
+                stat(metric, true).unwrap_or_else(|| {
+                    let x = mean(&|m| metric.of(m).unwrap_or(f64::NAN));
+                    (x, [x, x])
+                })
+            };
+            let (psnr, psnr_ci) = full(Metric::Psnr);
+            let (ssim, ssim_ci) = full(Metric::Ssim);
+            let lpips = stat(Metric::Lpips, true);
+            let pc = stat(Metric::PsnrCovered, false);
+            let sc = stat(Metric::SsimCovered, false);
+            let lc = stat(Metric::LpipsCovered, true);
             let times = Times {
                 volume_ms: mean(&|m| m.times.volume_ms),
                 network_ms: mean(&|m| m.times.network_ms),
@@ -138,9 +273,19 @@ pub fn aggregate(ms: &[Measurement]) -> Vec<Row> {
                 bin: BINS[b].into(),
                 kind: KINDS[kk].into(),
                 count: v.len(),
-                psnr: mean(&|m| m.psnr),
-                ssim: mean(&|m| m.ssim),
-                lpips,
+                psnr,
+                psnr_ci,
+                ssim,
+                ssim_ci,
+                lpips: lpips.map(|x| x.0),
+                lpips_ci: lpips.map(|x| x.1),
+                psnr_covered: pc.map(|x| x.0),
+                psnr_covered_ci: pc.map(|x| x.1),
+                ssim_covered: sc.map(|x| x.0),
+                ssim_covered_ci: sc.map(|x| x.1),
+                lpips_covered: lc.map(|x| x.0),
+                lpips_covered_ci: lc.map(|x| x.1),
+                covered_fraction: mean(&|m| m.covered_fraction),
                 ms_per_view: times.total(),
                 times,
             }
@@ -148,24 +293,119 @@ pub fn aggregate(ms: &[Measurement]) -> Vec<Row> {
         .collect()
 }
 
-/// `report.csv`: one line per row.
+/// A paired comparison of two configurations on the triplets both were scored on: the mean of
+/// `a − b` for one metric in one group, with its paired bootstrap interval.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Comparison {
+    /// The first configuration (`learned N=5 D=8`).
+    pub a: String,
+    /// The second.
+    pub b: String,
+    /// Rotation bin (see [`BINS`]).
+    pub bin: String,
+    /// Triplet kind (see [`KINDS`]).
+    pub kind: String,
+    /// The metric compared.
+    pub metric: Metric,
+    /// Triplets paired.
+    pub count: usize,
+    /// Mean of `a − b`.
+    pub diff: f64,
+    /// Its paired bootstrap interval.
+    pub ci: [f64; 2],
+    /// The interval contains 0: no difference can be claimed.
+    pub within_noise: bool,
+}
+
+impl Comparison {
+    /// `a`, `b` or `within noise`: which side the interval says is better.
+    pub fn verdict(&self) -> String {
+        if self.within_noise {
+            "within noise".into()
+        } else if (self.diff > 0.0) == self.metric.higher_is_better() {
+            format!("{} better", self.a)
+        } else {
+            format!("{} better", self.b)
+        }
+    }
+}
+
+/// Paired comparisons of `a` against `b`: every metric both have, in every (bin, kind) group
+/// with at least one shared triplet. Measurements pair by their `triplet`.
+pub fn compare(ms: &[Measurement], a: &Config, b: &Config, boot: &Bootstrap) -> Vec<Comparison> {
+    let of = |c: &Config| -> BTreeMap<usize, &Measurement> {
+        ms.iter()
+            .filter(|m| key_of(m) == *c)
+            .map(|m| (m.triplet, m))
+            .collect()
+    };
+    let (ma, mb) = (of(a), of(b));
+    let mut out = Vec::new();
+    for (bi, bin) in BINS.iter().enumerate() {
+        for (ki, kind) in KINDS.iter().enumerate() {
+            for metric in Metric::ALL {
+                let (mut xa, mut xb) = (Vec::new(), Vec::new());
+                for (t, m) in &ma {
+                    let Some(n) = mb.get(t) else { continue };
+                    if !groups_of(m).contains(&(bi, ki)) {
+                        continue;
+                    }
+                    if let (Some(x), Some(y)) = (metric.of(m), metric.of(n)) {
+                        xa.push(x);
+                        xb.push(y);
+                    }
+                }
+                if let Some((diff, ci)) = boot.paired(&xa, &xb) {
+                    out.push(Comparison {
+                        a: config_label(&a.0, a.1, a.2),
+                        b: config_label(&b.0, b.1, b.2),
+                        bin: (*bin).into(),
+                        kind: (*kind).into(),
+                        metric,
+                        count: xa.len(),
+                        diff,
+                        ci,
+                        within_noise: crate::stats::within_noise(ci),
+                    });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// `report.csv`: one line per row (intervals as `_lo`/`_hi` columns).
 pub fn csv(rows: &[Row]) -> String {
     let mut s = String::from(
-        "method,normals,planes,bin,kind,count,psnr,ssim,lpips,ms_per_view,volume_ms,network_ms,render_ms,blend_ms\n",
+        "method,normals,planes,bin,kind,count,psnr_covered,psnr_covered_lo,psnr_covered_hi,ssim_covered,ssim_covered_lo,ssim_covered_hi,lpips_covered,lpips_covered_lo,lpips_covered_hi,covered_fraction,psnr,psnr_lo,psnr_hi,ssim,ssim_lo,ssim_hi,lpips,lpips_lo,lpips_hi,ms_per_view,volume_ms,network_ms,render_ms,blend_ms\n",
     );
+    let opt = |v: Option<f64>, p: usize| v.map_or(String::new(), |x| format!("{x:.p$}"));
+    let ci = |c: Option<[f64; 2]>, p: usize| {
+        c.map_or(",".to_string(), |c| format!("{:.p$},{:.p$}", c[0], c[1]))
+    };
     for r in rows {
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{:.4},{:.5},{},{:.3},{:.3},{:.3},{:.3},{:.3}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{:.4},{:.4},{},{:.5},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3}",
             r.method,
             r.normals,
             r.planes,
             r.bin,
             r.kind,
             r.count,
+            opt(r.psnr_covered, 4),
+            ci(r.psnr_covered_ci, 4),
+            opt(r.ssim_covered, 5),
+            ci(r.ssim_covered_ci, 5),
+            opt(r.lpips_covered, 5),
+            ci(r.lpips_covered_ci, 5),
+            r.covered_fraction,
             r.psnr,
+            ci(Some(r.psnr_ci), 4),
             r.ssim,
-            r.lpips.map_or(String::new(), |l| format!("{l:.5}")),
+            ci(Some(r.ssim_ci), 5),
+            opt(r.lpips, 5),
+            ci(r.lpips_ci, 5),
             r.ms_per_view,
             r.times.volume_ms,
             r.times.network_ms,
@@ -207,75 +447,135 @@ pub fn configs(rows: &[Row]) -> Vec<(String, usize, usize)> {
     out
 }
 
-/// The tables of `report.md`: each metric per method × rotation bin (all kinds), then
-/// interpolation vs extrapolation, the N × D sweep of every method run at several
-/// configurations, and the time split.
-pub fn markdown_tables(rows: &[Row]) -> String {
-    let mut s = String::new();
+/// A row's value of a metric and its interval.
+fn row_metric(r: &Row, m: Metric) -> Option<(f64, [f64; 2])> {
+    match m {
+        Metric::PsnrCovered => r.psnr_covered.zip(r.psnr_covered_ci),
+        Metric::SsimCovered => r.ssim_covered.zip(r.ssim_covered_ci),
+        Metric::LpipsCovered => r.lpips_covered.zip(r.lpips_covered_ci),
+        Metric::Psnr => Some((r.psnr, r.psnr_ci)),
+        Metric::Ssim => Some((r.ssim, r.ssim_ci)),
+        Metric::Lpips => r.lpips.zip(r.lpips_ci),
+    }
+}
+
+/// `29.51 [29.10, 29.92]`; a single view has no interval (`29.51 [n=1]`).
+fn cell(v: Option<(f64, [f64; 2])>, prec: usize) -> String {
+    v.map_or("–".into(), |(x, c)| {
+        if c[0] == c[1] {
+            format!("{x:.prec$} [n=1]")
+        } else {
+            format!("{x:.prec$} [{:.prec$}, {:.prec$}]", c[0], c[1])
+        }
+    })
+}
+
+/// One table: a metric per configuration × rotation bin (all kinds), with intervals.
+fn metric_table(s: &mut String, rows: &[Row], metric: Metric, title: &str) {
     let cfgs = configs(rows);
     let bins_present: Vec<&str> = BINS
         .iter()
         .copied()
         .filter(|b| rows.iter().any(|r| r.bin == *b))
         .collect();
-    type Metric = (&'static str, fn(&Row) -> Option<f64>, usize);
-    let metrics: [Metric; 3] = [
-        ("PSNR (dB, higher is better)", |r| Some(r.psnr), 2),
-        ("SSIM (higher is better)", |r| Some(r.ssim), 3),
-        ("LPIPS-alex (lower is better)", |r| r.lpips, 3),
-    ];
-    for (title, get, prec) in metrics {
-        if !rows.iter().any(|r| get(r).is_some()) {
-            let _ = writeln!(
-                s,
-                "### {title}\n\nnot computed: the LPIPS weights are not in the cache (`cargo xtask weights`).\n"
-            );
-            continue;
-        }
-        let _ = writeln!(s, "### {title} by rotation bin\n");
-        let _ = write!(s, "| method |");
+    if !rows.iter().any(|r| row_metric(r, metric).is_some()) {
+        let why = if matches!(metric, Metric::Lpips | Metric::LpipsCovered) {
+            "not computed (no LPIPS weights were loaded; see the note above)"
+        } else {
+            "not computed: no target pixel is covered"
+        };
+        let _ = writeln!(s, "#### {title}\n\n{why}.\n");
+        return;
+    }
+    let _ = writeln!(s, "#### {title}\n");
+    let _ = write!(s, "| method |");
+    for b in &bins_present {
+        let n = rows
+            .iter()
+            .find(|r| r.bin == *b && r.kind == "all")
+            .map_or(0, |r| r.count);
+        let unit = if *b == "all" { "" } else { "°" };
+        let _ = write!(s, " {b}{unit} (n={n}) |");
+    }
+    let _ = writeln!(s, " ms/view |");
+    let _ = writeln!(s, "|---|{}---:|", "---:|".repeat(bins_present.len()));
+    for (m, n, d) in &cfgs {
+        let _ = write!(s, "| {} |", config_label(m, *n, *d));
         for b in &bins_present {
-            let n = rows
-                .iter()
-                .find(|r| r.bin == *b && r.kind == "all")
-                .map_or(0, |r| r.count);
-            let unit = if *b == "all" { "" } else { "°" };
-            let _ = write!(s, " {b}{unit} (n={n}) |");
+            let v = find(rows, (m, *n, *d), b, "all").and_then(|r| row_metric(r, metric));
+            let _ = write!(s, " {} |", cell(v, metric.precision()));
         }
-        let _ = writeln!(s, " ms/view |");
-        let _ = writeln!(s, "|---|{}---:|", "---:|".repeat(bins_present.len()));
-        for (m, n, d) in &cfgs {
-            let _ = write!(s, "| {} |", config_label(m, *n, *d));
-            for b in &bins_present {
-                match find(rows, (m, *n, *d), b, "all").and_then(get) {
-                    Some(v) => {
-                        let _ = write!(s, " {v:.prec$} |");
-                    }
-                    None => s.push_str(" – |"),
-                }
-            }
-            let ms = find(rows, (m, *n, *d), "all", "all").map_or(0.0, |r| r.ms_per_view);
-            let _ = writeln!(s, " {ms:.1} |");
+        let ms = find(rows, (m, *n, *d), "all", "all").map_or(0.0, |r| r.ms_per_view);
+        let _ = writeln!(s, " {ms:.1} |");
+    }
+    s.push('\n');
+}
+
+/// The tables of `report.md`: covered-region metrics first (per configuration × rotation bin,
+/// with 95 % bootstrap intervals) and the covered fraction per bin, then the whole-image
+/// metrics, interpolation vs extrapolation, the N × D sweep of every method run at several
+/// configurations, the time split, and the paired comparisons.
+pub fn markdown_tables(rows: &[Row], comparisons: &[Comparison]) -> String {
+    let mut s = String::new();
+    let cfgs = configs(rows);
+    let _ = writeln!(
+        s,
+        "### Covered region\n\nScored on the target pixels that the reference view sees on the farthest plane (one geometric mask per triplet, the same for every method); each cell is the mean over triplets and its 95 % bootstrap interval. LPIPS here is computed on the whole image after the render's uncovered pixels are replaced by the ground truth's.\n"
+    );
+    for (metric, title) in [
+        (Metric::PsnrCovered, "Covered PSNR (dB, higher is better)"),
+        (Metric::SsimCovered, "Covered SSIM (higher is better)"),
+        (Metric::LpipsCovered, "Covered LPIPS-alex (lower is better)"),
+    ] {
+        metric_table(&mut s, rows, metric, title);
+    }
+    let _ = writeln!(
+        s,
+        "Covered fraction of the target's pixels (mean over triplets):\n"
+    );
+    let mut head = String::from("|");
+    let mut sep = String::from("|");
+    let mut vals = String::from("|");
+    for b in BINS {
+        if let Some(r) = rows.iter().find(|r| r.bin == b && r.kind == "all") {
+            let unit = if b == "all" { "" } else { "°" };
+            let _ = write!(head, " {b}{unit} |");
+            sep.push_str("---:|");
+            let _ = write!(vals, " {:.3} |", r.covered_fraction);
         }
-        s.push('\n');
+    }
+    let _ = writeln!(s, "{head}\n{sep}\n{vals}\n");
+    let _ = writeln!(
+        s,
+        "### Whole image\n\nThe papers' protocol: every pixel, including those no input view saw (rendered black by the MHI methods).\n"
+    );
+    for (metric, title) in [
+        (Metric::Psnr, "PSNR (dB, higher is better)"),
+        (Metric::Ssim, "SSIM (higher is better)"),
+        (Metric::Lpips, "LPIPS-alex (lower is better)"),
+    ] {
+        metric_table(&mut s, rows, metric, title);
     }
     let _ = writeln!(s, "### Interpolation and extrapolation (all bins)\n");
     let _ = writeln!(
         s,
-        "| method | interp. PSNR | interp. SSIM | extrap. PSNR | extrap. SSIM |\n|---|---:|---:|---:|---:|"
+        "| method | interp. covered PSNR | extrap. covered PSNR | interp. PSNR | extrap. PSNR |\n|---|---:|---:|---:|---:|"
     );
     for (m, n, d) in &cfgs {
-        let cell = |kind: &str| {
-            find(rows, (m, *n, *d), "all", kind).map_or(" – | – |".to_string(), |r| {
-                format!(" {:.2} | {:.3} |", r.psnr, r.ssim)
-            })
+        let c = |kind: &str, metric: Metric| {
+            cell(
+                find(rows, (m, *n, *d), "all", kind).and_then(|r| row_metric(r, metric)),
+                2,
+            )
         };
         let _ = writeln!(
             s,
-            "| {} |{}{}",
+            "| {} | {} | {} | {} | {} |",
             config_label(m, *n, *d),
-            cell("interpolation"),
-            cell("extrapolation")
+            c("interpolation", Metric::PsnrCovered),
+            c("extrapolation", Metric::PsnrCovered),
+            c("interpolation", Metric::Psnr),
+            c("extrapolation", Metric::Psnr)
         );
     }
     s.push('\n');
@@ -287,7 +587,7 @@ pub fn markdown_tables(rows: &[Row]) -> String {
         }
     }
     for m in methods {
-        let mine: Vec<&(String, usize, usize)> = cfgs.iter().filter(|c| c.0 == m).collect();
+        let mine: Vec<&Config> = cfgs.iter().filter(|c| c.0 == m).collect();
         if mine.len() < 2 {
             continue;
         }
@@ -299,7 +599,7 @@ pub fn markdown_tables(rows: &[Row]) -> String {
         ds.dedup();
         let _ = writeln!(
             s,
-            "### N × D sweep: {m} (PSNR dB / ms per view, all triplets)\n"
+            "### N × D sweep: {m} (covered PSNR dB / ms per view, all triplets)\n"
         );
         let _ = write!(s, "| N \\ D |");
         for d in &ds {
@@ -311,7 +611,8 @@ pub fn markdown_tables(rows: &[Row]) -> String {
             for d in &ds {
                 match find(rows, (m, *n, *d), "all", "all") {
                     Some(r) => {
-                        let _ = write!(s, " {:.2} / {:.1} |", r.psnr, r.ms_per_view);
+                        let p = r.psnr_covered.unwrap_or(f64::NAN);
+                        let _ = write!(s, " {p:.2} / {:.1} |", r.ms_per_view);
                     }
                     None => s.push_str(" – |"),
                 }
@@ -322,7 +623,7 @@ pub fn markdown_tables(rows: &[Row]) -> String {
     }
     let _ = writeln!(
         s,
-        "### Time per novel view (ms, mean over all triplets)\n\n| method | cost volume | network | render | blend | total |\n|---|---:|---:|---:|---:|---:|"
+        "### Time per novel view (ms, mean over all triplets)\n\nFrom the two decoded input images to the final image (cost volume or sweep, networks, building the MHI, render, blend), after one warm-up view; file I/O and metrics are not included.\n\n| method | cost volume | network | render | blend | total |\n|---|---:|---:|---:|---:|---:|"
     );
     for (m, n, d) in &cfgs {
         if let Some(r) = find(rows, (m, *n, *d), "all", "all") {
@@ -336,6 +637,57 @@ pub fn markdown_tables(rows: &[Row]) -> String {
                 t.render_ms,
                 t.blend_ms,
                 r.ms_per_view
+            );
+        }
+    }
+    s.push('\n');
+    s.push_str(&comparison_table(comparisons));
+    s
+}
+
+/// The paired comparisons as a table: for each pair, every covered metric and the whole-image
+/// PSNR over all triplets, then covered PSNR per rotation bin and per kind. A difference whose
+/// interval contains 0 is reported as "within noise", never as a win.
+pub fn comparison_table(comparisons: &[Comparison]) -> String {
+    let mut s = String::new();
+    if comparisons.is_empty() {
+        return s;
+    }
+    let _ = writeln!(
+        s,
+        "### Paired comparisons\n\nMean of the per-triplet difference a − b over the triplets both were scored on, with its paired 95 % bootstrap interval (triplets resampled together). \"within noise\": the interval contains 0.\n\n| a − b | metric | bin | kind | n | mean difference [95 %] | verdict |\n|---|---|---|---|---:|---:|---|"
+    );
+    let mut pairs: Vec<(&str, &str)> = Vec::new();
+    for c in comparisons {
+        if !pairs.contains(&(c.a.as_str(), c.b.as_str())) {
+            pairs.push((&c.a, &c.b));
+        }
+    }
+    for (a, b) in pairs {
+        let shown = comparisons.iter().filter(|c| {
+            c.a == a
+                && c.b == b
+                && ((c.bin == "all"
+                    && c.kind == "all"
+                    && c.metric != Metric::Ssim
+                    && c.metric != Metric::Lpips)
+                    || (c.metric == Metric::PsnrCovered
+                        && ((c.bin != "all" && c.kind == "all")
+                            || (c.bin == "all" && c.kind != "all"))))
+        });
+        for c in shown {
+            let p = c.metric.precision();
+            let _ = writeln!(
+                s,
+                "| {a} − {b} | {} | {} | {} | {} | {:+.p$} [{:+.p$}, {:+.p$}] | {} |",
+                c.metric.label(),
+                c.bin,
+                c.kind,
+                c.count,
+                c.diff,
+                c.ci[0],
+                c.ci[1],
+                c.verdict()
             );
         }
     }
@@ -368,6 +720,11 @@ mod tests {
 
     fn m(method: &str, bin: &str, kind: &str, psnr: f64, ms: f64) -> Measurement {
         Measurement {
+            triplet: 0,
+            psnr_covered: Some(psnr + 1.0),
+            ssim_covered: Some(0.6),
+            lpips_covered: Some(0.05),
+            covered_fraction: 0.9,
             method: method.into(),
             normals: 5,
             planes: 8,
@@ -392,7 +749,7 @@ mod tests {
             m("a", ">8", "extrapolation", 10.0, 3.0),
             m("b", ">8", "interpolation", 30.0, 5.0),
         ];
-        let rows = aggregate(&ms);
+        let rows = aggregate(&ms, &Bootstrap::default());
         let get = |method: &str, bin: &str, kind: &str| {
             rows.iter()
                 .find(|r| r.method == method && r.bin == bin && r.kind == kind)
@@ -407,9 +764,56 @@ mod tests {
         assert!(get("a", "2-4", "all").is_none());
         assert_eq!(get("b", "all", "all").unwrap().psnr, 30.0);
         // Methods keep their order; the tables mention both.
-        let md = markdown_tables(&rows);
+        let md = markdown_tables(&rows, &[]);
         assert!(md.find("| a N=5 D=8").unwrap() < md.find("| b N=5 D=8").unwrap());
         assert!(csv(&rows).lines().count() == rows.len() + 1);
+    }
+
+    #[test]
+    fn comparisons_pair_triplets_and_refuse_to_call_noise_a_win() {
+        let boot = Bootstrap::default();
+        let mut ms = Vec::new();
+        for t in 0..20 {
+            let base = 20.0 + (t * 7 % 5) as f64;
+            let mut a = m("a", "0-2", "interpolation", base + 0.5, 1.0);
+            let mut b = m("b", "0-2", "interpolation", base, 1.0);
+            // Covered PSNR: a and b differ by ±0.3 alternately (no real difference).
+            let jitter = if t % 2 == 0 { 0.3 } else { -0.3 };
+            a.psnr_covered = Some(base + jitter);
+            b.psnr_covered = Some(base);
+            a.triplet = t;
+            b.triplet = t;
+            ms.push(a);
+            ms.push(b);
+        }
+        let ka: Config = ("a".into(), 5, 8);
+        let kb: Config = ("b".into(), 5, 8);
+        let c = compare(&ms, &ka, &kb, &boot);
+        let get = |metric: Metric| {
+            c.iter()
+                .find(|x| x.metric == metric && x.bin == "all" && x.kind == "all")
+                .unwrap()
+                .clone()
+        };
+        let full = get(Metric::Psnr);
+        assert_eq!(full.count, 20);
+        assert!((full.diff - 0.5).abs() < 1e-9 && !full.within_noise);
+        assert_eq!(full.verdict(), "a N=5 D=8 better");
+        let cov = get(Metric::PsnrCovered);
+        assert!(cov.within_noise, "{cov:?}");
+        assert_eq!(cov.verdict(), "within noise");
+        let rows = aggregate(&ms, &boot);
+        let md = markdown_tables(&rows, &c);
+        assert!(md.contains("within noise") && md.contains("Covered PSNR"));
+        let r = rows
+            .iter()
+            .find(|r| r.method == "a" && r.bin == "all" && r.kind == "all")
+            .unwrap();
+        assert!(r.psnr_ci[0] < r.psnr && r.psnr < r.psnr_ci[1]);
+        // LPIPS lower is better: a positive difference means b is better.
+        let mut l = get(Metric::Psnr);
+        l.metric = Metric::Lpips;
+        assert_eq!(l.verdict(), "b N=5 D=8 better");
     }
 
     #[test]

@@ -10,10 +10,10 @@ use burn::grad_clipping::GradientClippingConfig;
 use burn::module::Module;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, Tensor};
-use mhi_data::{Dataset, Fit, LoadedFrame, Sequence, load_frame, sample_training_triplet};
+use mhi_data::{DataMix, DataSource, Fit, LoadedFrame, load_frame};
 use mhi_geom::{BlendHeuristic, NormalSet, depths_linear_in_disparity};
 use mhi_render::diff::{WarpGeometry, heuristic_weights_tensor, image_to_tensor, render_shared};
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
@@ -73,6 +73,10 @@ pub struct TrainConfig {
     /// The loss actually used (filled in by the trainer).
     #[config(default = "String::new()")]
     pub loss: String,
+    /// The training data: roots, splits, weights of the mix and the sequences held out for
+    /// validation. Empty in runs written before it was recorded (they trained on one root).
+    #[config(default = "Vec::new()")]
+    pub data: Vec<DataSource>,
 }
 
 impl TrainConfig {
@@ -196,7 +200,10 @@ pub struct Trainer {
     config: TrainConfig,
     dir: PathBuf,
     device: Device,
-    dataset: Dataset,
+    train_data: DataMix,
+    /// Validation data (a `val` split or held-out sequences); `None` when the sources have none,
+    /// and validation then draws unseen triplets of the training sequences.
+    val_data: Option<DataMix>,
     normals: NormalSet,
     depths: Vec<f64>,
     stage1: Stage1,
@@ -221,8 +228,9 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> crate::Result<()> {
 }
 
 impl Trainer {
-    /// Start a new run in `dir` (which must not hold a run yet) on the sequences of
-    /// `data_root/train`, minimising `loss` (its name is recorded in `config.json`).
+    /// Start a new run in `dir` (which must not hold a run yet) on `config.data` (when empty:
+    /// the `train` split of `data_root`), minimising `loss` (its name is recorded in
+    /// `config.json`).
     pub fn new(
         mut config: TrainConfig,
         dir: &Path,
@@ -231,6 +239,11 @@ impl Trainer {
         device: Device,
     ) -> crate::Result<Self> {
         config.validate()?;
+        if config.data.is_empty() {
+            config.data = vec![DataSource::train(data_root)];
+        }
+        // Open the data before writing anything, so that a bad source leaves no half-made run.
+        DataMix::training(&config.data).map_err(|e| Error::Data(Box::new(e)))?;
         if dir.join("config.json").exists() {
             return Err(Error::Config(format!(
                 "{} already holds a training run; pass --resume to continue it or choose another --run",
@@ -361,13 +374,13 @@ impl Trainer {
         step: usize,
         elapsed_before: f64,
     ) -> crate::Result<Self> {
-        let dataset = Dataset::open(data_root, "train", 3).map_err(|e| Error::Data(Box::new(e)))?;
-        if dataset.sequences.is_empty() {
-            return Err(Error::Config(format!(
-                "{}: no training sequence",
-                dataset.dir.display()
-            )));
+        let mut config = config;
+        if config.data.is_empty() {
+            config.data = vec![DataSource::train(data_root)];
         }
+        let data_err = |e| Error::Data(Box::new(e));
+        let train_data = DataMix::training(&config.data).map_err(data_err)?;
+        let val_data = DataMix::validation(&config.data).map_err(data_err)?;
         let normals = config.normal_set()?;
         let depths = depths_linear_in_disparity(config.near, config.far, config.planes)?;
         let opt1 = config.optimizer.init();
@@ -376,7 +389,8 @@ impl Trainer {
             config,
             dir: dir.to_path_buf(),
             device,
-            dataset,
+            train_data,
+            val_data,
             normals,
             depths,
             stage1,
@@ -421,34 +435,61 @@ impl Trainer {
 
     /// The training sample of `step` (deterministic).
     pub fn sample(&self, step: usize) -> crate::Result<Sample> {
+        self.sample_from(&self.train_data, step)
+    }
+
+    /// Where validation samples come from, for the run's records.
+    pub fn validation_source(&self) -> String {
+        match &self.val_data {
+            Some(v) => v
+                .parts()
+                .map(|(name, d, _)| {
+                    let seqs: Vec<&str> = d.sequences.iter().map(|s| s.name.as_str()).collect();
+                    if d.dir.ends_with("val") {
+                        format!("{name}: val split ({} sequences)", seqs.len())
+                    } else {
+                        format!("{name}: held-out sequences {}", seqs.join(", "))
+                    }
+                })
+                .collect::<Vec<_>>()
+                .join("; "),
+            None => "unseen triplets of the training sequences (the data has no val split and no held-out sequence)".into(),
+        }
+    }
+
+    /// The `k`-th validation sample (deterministic): from the validation data when there is
+    /// some, else drawn after training's range of steps from the training data.
+    pub fn validation_sample(&self, k: usize) -> crate::Result<Sample> {
+        match &self.val_data {
+            Some(v) => self.sample_from(v, k),
+            None => self.sample_from(&self.train_data, 1_000_000 + k),
+        }
+    }
+
+    fn sample_from(&self, mix: &DataMix, step: usize) -> crate::Result<Sample> {
         let mut rng = ChaCha8Rng::seed_from_u64(
             self.config.seed ^ (step as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
         );
-        for _ in 0..32 {
-            let seq: &Sequence =
-                &self.dataset.sequences[rng.random_range(0..self.dataset.sequences.len())];
-            let Some(t) = sample_training_triplet(seq, &mut rng) else {
-                continue;
-            };
-            mhi_data::check_same_size(&[
-                &seq.frames[t.reference],
-                &seq.frames[t.source],
-                &seq.frames[t.target],
-            ])
-            .map_err(|e| Error::Data(Box::new(e)))?;
-            let size = Some((self.config.width, self.config.height));
-            let load = |i: usize| {
-                load_frame(&seq.frames[i], size, Fit::Stretch).map_err(|e| Error::Data(Box::new(e)))
-            };
-            return Ok(Sample {
-                reference: load(t.reference)?,
-                source: load(t.source)?,
-                target: load(t.target)?,
-            });
-        }
-        Err(Error::Config(
-            "no sequence yields a triplet (each needs 3 frames)".into(),
-        ))
+        let Some((seq, t)) = mix.sample(&mut rng) else {
+            return Err(Error::Config(
+                "no sequence yields a triplet (each needs 3 frames)".into(),
+            ));
+        };
+        mhi_data::check_same_size(&[
+            &seq.frames[t.reference],
+            &seq.frames[t.source],
+            &seq.frames[t.target],
+        ])
+        .map_err(|e| Error::Data(Box::new(e)))?;
+        let size = Some((self.config.width, self.config.height));
+        let load = |i: usize| {
+            load_frame(&seq.frames[i], size, Fit::Stretch).map_err(|e| Error::Data(Box::new(e)))
+        };
+        Ok(Sample {
+            reference: load(t.reference)?,
+            source: load(t.source)?,
+            target: load(t.target)?,
+        })
     }
 
     /// Take one training step (phase 1 or 2 by the step index) and log it.
@@ -699,8 +740,8 @@ impl Trainer {
         scalar(self.loss.compute(mni, target)?)
     }
 
-    /// Mean PSNR and (with `lpips`) LPIPS over `count` deterministic held-out samples (drawn
-    /// after training's range of steps): the learned blend, and the Soft heuristic on the same
+    /// Mean PSNR and (with `lpips`) LPIPS over `count` deterministic validation samples (see
+    /// [`Trainer::validation_sample`]): the learned blend, and the Soft heuristic on the same
     /// stage 1.
     pub fn evaluate_scores(
         &self,
@@ -711,7 +752,7 @@ impl Trainer {
         let plain = self.plain();
         let blend = self.blend.valid();
         for k in 0..count {
-            let s = self.sample(1_000_000 + k)?;
+            let s = self.validation_sample(k)?;
             let alpha = self.frozen_alphas_of(self.cost_volume_on(&s, &plain)?);
             let RenderInputs {
                 geom,
@@ -738,8 +779,8 @@ impl Trainer {
         Ok(e)
     }
 
-    /// Mean PSNR over `count` deterministic samples drawn after training's range of steps: the
-    /// learned blend, and the Soft heuristic on the same stage 1.
+    /// Mean PSNR over `count` deterministic validation samples: the learned blend, and the Soft
+    /// heuristic on the same stage 1.
     pub fn evaluate(&self, count: usize) -> crate::Result<(f64, f64)> {
         let e = self.evaluate_scores(count, None)?;
         Ok((e.psnr_learned, e.psnr_soft))

@@ -28,6 +28,10 @@ pub struct SynthArgs {
     /// Fraction of scenes written to the test split.
     #[arg(long, default_value_t = 0.2)]
     pub test_fraction: f64,
+    /// Fraction of scenes written to the val split (validation: defaults are chosen there,
+    /// never on test).
+    #[arg(long, default_value_t = 0.1)]
+    pub val_fraction: f64,
     /// Samples per pixel along each axis (anti-aliasing).
     #[arg(long, default_value_t = 2)]
     pub supersample: u32,
@@ -68,9 +72,10 @@ pub fn synth(a: &SynthArgs) -> anyhow::Result<()> {
         height: a.size.1,
         seed: a.seed,
         test_fraction: a.test_fraction,
+        val_fraction: a.val_fraction,
         supersample: a.supersample,
     };
-    for split in ["train", "test"] {
+    for split in ["train", "val", "test"] {
         let d = a.out.join(split);
         if non_empty_dir(&d) && !a.overwrite {
             bail!(
@@ -88,10 +93,11 @@ pub fn synth(a: &SynthArgs) -> anyhow::Result<()> {
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     println!(
-        "wrote {} frames of {} scenes ({} train, {} test) at {}x{} to {} in {:.1} s ({:.1} frames/s)",
+        "wrote {} frames of {} scenes ({} train, {} val, {} test) at {}x{} to {} in {:.1} s ({:.1} frames/s)",
         summary.frames,
         config.scenes,
         summary.train.len(),
+        summary.val.len(),
         summary.test.len(),
         config.width,
         config.height,
@@ -105,9 +111,10 @@ pub fn synth(a: &SynthArgs) -> anyhow::Result<()> {
 /// Options of `cargo xtask triplets`.
 #[derive(Args, Debug)]
 pub struct TripletsArgs {
-    /// Dataset root in RealEstate10K layout (`ROOT/<split>/<seq>.txt` and frames).
-    #[arg(long)]
-    pub data: PathBuf,
+    /// Dataset root in RealEstate10K layout (`ROOT/<split>/<seq>.txt` and frames); repeat to
+    /// open several roots as one (sequence names then qualified as ROOT/SEQUENCE).
+    #[arg(long, required = true)]
+    pub data: Vec<PathBuf>,
     /// Split to open.
     #[arg(long, default_value = "test")]
     pub split: String,
@@ -124,7 +131,7 @@ pub struct TripletsArgs {
 
 /// `cargo xtask triplets`.
 pub fn triplets(a: &TripletsArgs) -> anyhow::Result<()> {
-    let ds = Dataset::open(&a.data, &a.split, 3)?;
+    let ds = Dataset::open_many(&a.data, &a.split, 3)?;
     for w in &ds.warnings {
         eprintln!("warning: {w}");
     }
@@ -156,6 +163,17 @@ pub fn triplets(a: &TripletsArgs) -> anyhow::Result<()> {
         k.cx,
         k.cy
     );
+    for s in &ds.sequences {
+        println!(
+            "  {}: {} frames, sampled as {}",
+            s.name,
+            s.frames.len(),
+            match s.sampling() {
+                mhi_data::Sampling::Video => "video (clips of 10 frames, stride 3-10)",
+                mhi_data::Sampling::Sparse => "a sparse capture (neighbouring views)",
+            }
+        );
+    }
     let index = TripletIndex::sample(&ds, a.per_sequence, a.seed);
     let counts = index.bin_counts();
     let interp = index

@@ -11,8 +11,9 @@ use burn::tensor::Device;
 use clap::Args;
 use image::Rgb32FImage;
 use mhi_data::{Dataset, Fit, LoadedFrame, TripletIndex, TripletKind, load_frame, load_scene};
+use mhi_eval::Bootstrap;
 use mhi_eval::plot::{Curve, TimePoint};
-use mhi_eval::report::{self, Measurement, Row, Times, config_label};
+use mhi_eval::report::{self, Comparison, Config, Measurement, Row, Times, config_label};
 use mhi_geom::{BlendHeuristic, NormalSet, depths_linear_in_disparity};
 use mhi_net::Model;
 use mhi_net::backbone::{Backbone, Net};
@@ -24,18 +25,46 @@ use serde::Serialize;
 
 use crate::views::{clipped, combine, enlarge, factor_for, layer_picture, strip};
 
+/// A method `cargo xtask eval` can score.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// Stage 1 of a trained run with N > 1 and its learned blending network.
+    Learned,
+    /// The same stage 1, blended with the paper's Soft heuristic.
+    Soft,
+    /// The same stage 1, Hard blending (one normal per pixel).
+    Hard,
+    /// The same stage 1, Avg blending.
+    Avg,
+    /// A trained run with N = 1 (the MPI baseline).
+    Mpi,
+    /// The training-free plane-sweep MHI at each --sweep-grid configuration.
+    Sweep,
+    /// The MHI of the scene's exact geometry (synthetic scenes only).
+    Oracle,
+    /// The input view nearest the target, shown as it is.
+    Nearest,
+}
+
 /// Options of `cargo xtask eval`.
 #[derive(Args, Debug, Clone)]
 pub struct EvalArgs {
-    /// Dataset root in RealEstate10K layout (synthetic scenes are generated there if missing
-    /// and the path is the default).
+    /// Dataset root in RealEstate10K layout; repeat for several (sequence names are then
+    /// qualified by the root's folder name, e.g. `llff-6/room`). Synthetic scenes are generated
+    /// at the default path if missing.
     #[arg(long, default_value = "data/synth")]
-    pub data: PathBuf,
-    /// Split to evaluate.
+    pub data: Vec<PathBuf>,
+    /// Split to evaluate (real training roots keep whole sequences for validation: evaluate
+    /// those with `--split train --sequences NAME`).
     #[arg(long, default_value = "test")]
     pub split: String,
+    /// Only these sequences (comma-separated; qualified names with several roots).
+    #[arg(long, value_delimiter = ',')]
+    pub sequences: Vec<String>,
     /// Triplet index (JSON from `cargo xtask triplets --save`); default: sample --per-sequence
-    /// triplets per sequence with --seed.
+    /// triplets per sequence with --seed (video: Stereo Magnification's clips of 10 frames at a
+    /// stride of 3-10; sparse captures: neighbouring views), half interpolation, half
+    /// extrapolation.
     #[arg(long)]
     pub index: Option<PathBuf>,
     /// Triplets sampled per sequence when no --index is given.
@@ -44,30 +73,49 @@ pub struct EvalArgs {
     /// Seed of the sampled triplets.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Seed of the bootstrap resampling behind every interval of the report.
+    #[arg(long, default_value_t = 0)]
+    pub bootstrap_seed: u64,
     /// A trained run (repeat for several): N > 1 gives `learned`, `soft`, `hard` and `avg`;
     /// N = 1 gives `mpi`.
     #[arg(long = "run")]
     pub runs: Vec<PathBuf>,
-    /// Methods to score (comma-separated); those that do not apply are skipped.
+    /// Methods to score (comma-separated); `learned`/`soft`/`hard`/`avg`/`mpi` need a --run,
+    /// `oracle` synthetic scenes.
     #[arg(
         long,
+        value_enum,
         value_delimiter = ',',
         default_value = "learned,soft,hard,avg,mpi,sweep,oracle,nearest"
     )]
-    pub methods: Vec<String>,
+    pub methods: Vec<Method>,
     /// (N, D) configurations of the training-free sweep, as NxD (N in 1, 2, 3, 5).
     #[arg(long, value_delimiter = ',', default_value = "1x8,5x8,1x32,5x32")]
     pub sweep_grid: Vec<String>,
+    /// Radius of the sweep's photo-consistency window (chosen on validation sequences; see
+    /// README).
+    #[arg(long, default_value_t = SweepConfig::default().window_radius)]
+    pub sweep_window: u32,
+    /// Softmax temperature of the sweep's winner-take-all over depths (chosen on validation
+    /// sequences; see README).
+    #[arg(long, default_value_t = SweepConfig::default().temperature)]
+    pub sweep_temperature: f32,
     /// (N, D) configurations of the oracle (synthetic scenes only).
     #[arg(long, value_delimiter = ',', default_value = "1x8,5x8,5x32")]
     pub oracle_grid: Vec<String>,
-    /// Evaluation size WIDTHxHEIGHT (default: the first run's training size, else 64x64).
+    /// Evaluation size WIDTHxHEIGHT for every sequence (default: the short side at
+    /// --short-side, the aspect ratio kept).
     #[arg(long, value_parser = crate::data::parse_size)]
     pub size: Option<(u32, u32)>,
+    /// Short side of the evaluation size when no --size is given; the long side keeps the
+    /// frames' aspect ratio, rounded to a multiple of 16 (the networks' stride).
+    #[arg(long, default_value_t = 256)]
+    pub short_side: u32,
     /// Nearest plane depth of the sweep and oracle.
     #[arg(long, default_value_t = 1.0)]
     pub near: f64,
-    /// Farthest plane depth of the sweep and oracle.
+    /// Farthest plane depth of the sweep and oracle; the covered region is what the reference
+    /// view sees on the fronto-parallel plane at this depth.
     #[arg(long, default_value_t = 100.0)]
     pub far: f64,
     /// Output directory of the report.
@@ -85,6 +133,18 @@ pub struct EvalArgs {
     /// Weights cache for LPIPS (default: $MHI_CACHE, else ~/.cache/mhi); see `cargo xtask weights`.
     #[arg(long)]
     pub cache: Option<PathBuf>,
+}
+
+/// The evaluation size of frames of `dims`: `short` pixels on the short side, the long side in
+/// proportion rounded to a multiple of 16 (at least 16).
+pub fn size_for(dims: (u32, u32), short: u32) -> (u32, u32) {
+    let (w, h) = (f64::from(dims.0), f64::from(dims.1));
+    let long = |l: f64, s: f64| ((l / s * f64::from(short) / 16.0).round() as u32).max(1) * 16;
+    if dims.0 >= dims.1 {
+        (long(w, h), short)
+    } else {
+        (short, long(h, w))
+    }
 }
 
 pub fn parse_nd(s: &str) -> anyhow::Result<(usize, usize)> {
@@ -123,11 +183,18 @@ struct Output {
 struct Meta {
     dataset: String,
     split: String,
+    sequences: Vec<String>,
     triplets: usize,
     bin_counts: [usize; 4],
+    /// The first sequence's evaluation size (all of them in `sizes`).
     size: (u32, u32),
+    sizes: Vec<(u32, u32)>,
     runs: Vec<serde_json::Value>,
     lpips: String,
+    covered: String,
+    timing: String,
+    sweep: SweepConfig,
+    bootstrap: Bootstrap,
     machine: String,
     threads: usize,
     date: String,
@@ -137,13 +204,14 @@ struct Meta {
 struct ReportJson<'a> {
     meta: &'a Meta,
     rows: &'a [Row],
+    comparisons: &'a [Comparison],
     measurements: &'a [Measurement],
 }
 
 /// `cargo xtask eval`.
 pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
-    if a.data == Path::new("data/synth") {
-        crate::experiments::ensure_synthetic(&a.data)?;
+    if a.data.len() == 1 && a.data[0] == Path::new("data/synth") {
+        crate::experiments::ensure_synthetic(&a.data[0])?;
     }
     if a.out.join("report.json").exists() && !a.overwrite {
         bail!(
@@ -151,7 +219,23 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             a.out.display()
         );
     }
-    let ds = Dataset::open(&a.data, &a.split, 3)?;
+    if a.short_side < 32 {
+        bail!(
+            "--short-side {} is too small: LPIPS and SSIM need at least 32 pixels a side",
+            a.short_side
+        );
+    }
+    if let Some((w, h)) = a.size
+        && (w < 32 || h < 32)
+    {
+        bail!("--size {w}x{h} is too small: LPIPS and SSIM need at least 32 pixels a side");
+    }
+    let ds = Dataset::open_many(&a.data, &a.split, 3)?;
+    let ds = if a.sequences.is_empty() {
+        ds
+    } else {
+        ds.select(&a.sequences, true).context("--sequences")?
+    };
     for w in &ds.warnings {
         eprintln!("warning: {}: {}", w.path.display(), w.message);
     }
@@ -165,8 +249,9 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     };
     if index.triplets.is_empty() {
         bail!(
-            "{}: no triplet to evaluate (each sequence needs at least 3 frames)",
-            ds.dir.display()
+            "{}: no triplet to evaluate (--per-sequence is {}; each sequence needs at least 3 frames)",
+            ds.dir.display(),
+            a.per_sequence
         );
     }
     let cpu = Device::flex();
@@ -179,18 +264,8 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             model,
         });
     }
-    let size = a.size.unwrap_or_else(|| {
-        models.first().map_or((64, 64), |m| {
-            (m.model.config().width, m.model.config().height)
-        })
-    });
-    for m in &models {
-        m.model
-            .check_size(size.0, size.1)
-            .with_context(|| format!("--size for the run {}", m.run.display()))?;
-    }
-    let wants = |m: &str| a.methods.iter().any(|x| x == m);
-    let sweep_grid: Vec<(usize, usize)> = if wants("sweep") {
+    let wants = |m: Method| a.methods.contains(&m);
+    let sweep_grid: Vec<(usize, usize)> = if wants(Method::Sweep) {
         a.sweep_grid
             .iter()
             .map(|s| parse_nd(s))
@@ -201,8 +276,8 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let synthetic = ds
         .sequences
         .iter()
-        .all(|s| ds.dir.join(&s.name).join("scene.json").is_file());
-    let oracle_grid: Vec<(usize, usize)> = if wants("oracle") && synthetic {
+        .all(|s| s.dir().join("scene.json").is_file());
+    let oracle_grid: Vec<(usize, usize)> = if wants(Method::Oracle) && synthetic {
         a.oracle_grid
             .iter()
             .map(|s| parse_nd(s))
@@ -210,6 +285,32 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     } else {
         Vec::new()
     };
+    let sweep_config = SweepConfig {
+        window_radius: a.sweep_window,
+        temperature: a.sweep_temperature,
+        ..SweepConfig::default()
+    };
+    // The size of each sequence, checked against every model before any work.
+    let size_of = |seq: &mhi_data::Sequence| -> anyhow::Result<(u32, u32)> {
+        Ok(match a.size {
+            Some(s) => s,
+            None => size_for(mhi_data::check_same_size(&[&seq.frames[0]])?, a.short_side),
+        })
+    };
+    let mut sizes = std::collections::BTreeMap::new();
+    for seq in &ds.sequences {
+        let size = size_of(seq)?;
+        for m in &models {
+            m.model.check_size(size.0, size.1).with_context(|| {
+                format!(
+                    "evaluation size of sequence {} (--size / --short-side) for the run {}",
+                    seq.name,
+                    m.run.display()
+                )
+            })?;
+        }
+        sizes.insert(seq.name.clone(), size);
+    }
     let weights_dir = crate::weights::cache_dir(a.cache.as_deref()).join("weights");
     let lpips_net = match Backbone::load(&weights_dir, Net::Alex, &cpu) {
         Ok(b) => Some(b),
@@ -220,31 +321,56 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     };
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("cannot create {}", a.out.display()))?;
-    let pb = crate::progress::bar(index.triplets.len() as u64, "eval");
+    // A report replaced with --overwrite must not keep pictures of the one before.
+    for stale in ["samples", "layers"] {
+        let p = a.out.join(stale);
+        if p.is_dir() {
+            std::fs::remove_dir_all(&p)
+                .with_context(|| format!("cannot remove the old {}", p.display()))?;
+        }
+    }
+    for stale in ["orbit.gif", "training_curve.svg", "training_curve.png"] {
+        let p = a.out.join(stale);
+        if p.is_file() {
+            std::fs::remove_file(&p)
+                .with_context(|| format!("cannot remove the old {}", p.display()))?;
+        }
+    }
+    let ctx = Ctx {
+        a,
+        models: &models,
+        sweep_grid: &sweep_grid,
+        oracle_grid: &oracle_grid,
+        sweep_config,
+    };
+    let pb = crate::progress::bar(index.triplets.len() as u64 + 1, "eval");
     let mut measurements: Vec<Measurement> = Vec::new();
     let mut sample_md = String::new();
+    let mut sizes_used = Vec::new();
     for (ti, t) in index.triplets.iter().enumerate() {
         let seq = ds
             .sequences
             .iter()
             .find(|s| s.name == t.sequence)
             .context("triplet sequence vanished")?;
+        let size = sizes[&seq.name];
+        if !sizes_used.contains(&size) {
+            sizes_used.push(size);
+        }
         let load = |i: usize| -> anyhow::Result<LoadedFrame> {
             Ok(load_frame(&seq.frames[i], Some(size), Fit::Stretch)?)
         };
         let (rf, sf, tf) = (load(t.reference)?, load(t.source)?, load(t.target)?);
-        let outputs = run_methods(
-            a,
-            &models,
-            &rf,
-            &sf,
-            &tf,
-            &sweep_grid,
-            &oracle_grid,
-            &ds,
-            seq,
-        )?;
+        if ti == 0 {
+            // Warm-up: the first view of every method pays for allocations and lazy
+            // initialisation that a user rendering many views pays once.
+            ctx.run_methods(&rf, &sf, &tf, seq)?;
+            pb.inc(1);
+        }
+        let outputs = ctx.run_methods(&rf, &sf, &tf, seq)?;
         let gt = &tf.image;
+        let covered = mhi_eval::covered_mask(&rf.camera, &tf.camera, a.far);
+        let covered_fraction = mhi_eval::coverage::fraction(&covered);
         let kind = match t.kind {
             TripletKind::Interpolation => "interpolation",
             TripletKind::Extrapolation => "extrapolation",
@@ -255,11 +381,18 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             .to_string();
         for o in &outputs {
             let img = clipped(&o.image);
-            let lpips = match &lpips_net {
-                Some(net) => Some(lpips_of(net, &img, gt, &cpu)?),
-                None => None,
+            let pasted = with_uncovered_from(&img, gt, &covered);
+            let (lpips, lpips_covered) = match &lpips_net {
+                Some(net) => (
+                    Some(lpips_of(net, &img, gt, &cpu)?),
+                    (covered_fraction > 0.0)
+                        .then(|| lpips_of(net, &pasted, gt, &cpu))
+                        .transpose()?,
+                ),
+                None => (None, None),
             };
             measurements.push(Measurement {
+                triplet: ti,
                 method: o.method.clone(),
                 normals: o.normals,
                 planes: o.planes,
@@ -270,11 +403,23 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
                 psnr: mhi_eval::psnr(&img, gt)?,
                 ssim: mhi_eval::ssim(&img, gt)?,
                 lpips,
+                psnr_covered: mhi_eval::psnr_masked(&img, gt, &covered)?,
+                ssim_covered: mhi_eval::ssim_masked(&img, gt, &covered)?,
+                lpips_covered,
+                covered_fraction,
                 times: o.times,
             });
         }
         if ti < a.samples {
-            sample_md.push_str(&write_samples(&a.out, ti, t, &rf, &sf, gt, &outputs)?);
+            sample_md.push_str(&write_samples(
+                &a.out,
+                ti,
+                t,
+                (&rf, &sf),
+                gt,
+                &covered,
+                &outputs,
+            )?);
         }
         if ti == 0 {
             write_layers_and_orbit(a, &models, &rf, &sf, &tf)?;
@@ -283,13 +428,25 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     }
     pb.finish_and_clear();
 
-    let rows = report::aggregate(&measurements);
+    let boot = Bootstrap::default().with_seed(a.bootstrap_seed);
+    let rows = report::aggregate(&measurements, &boot);
+    let comparisons: Vec<Comparison> = comparison_pairs(&report::configs(&rows))
+        .iter()
+        .flat_map(|(x, y)| report::compare(&measurements, x, y, &boot))
+        .collect();
     let meta = Meta {
-        dataset: ds.dir.display().to_string(),
+        dataset: a
+            .data
+            .iter()
+            .map(|d| d.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
         split: a.split.clone(),
+        sequences: ds.sequences.iter().map(|s| s.name.clone()).collect(),
         triplets: index.triplets.len(),
         bin_counts: index.bin_counts(),
-        size,
+        size: sizes_used[0],
+        sizes: sizes_used.clone(),
         runs: models
             .iter()
             .map(|m| {
@@ -307,6 +464,13 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         } else {
             format!("not computed: no weights in {}", weights_dir.display())
         },
+        covered: format!(
+            "target pixels whose ray meets the reference camera's fronto-parallel plane at depth {} inside the reference image; LPIPS covered = LPIPS of the render with uncovered pixels replaced by the ground truth's",
+            a.far
+        ),
+        timing: "ms per view from the two decoded input images to the final image (cost volume or sweep, networks, building the MHI, render, blend), after one warm-up view; file I/O and metrics excluded".into(),
+        sweep: sweep_config,
+        bootstrap: boot,
         machine: machine(),
         threads: rayon::current_num_threads(),
         date: crate::date(),
@@ -314,6 +478,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let json = serde_json::to_vec_pretty(&ReportJson {
         meta: &meta,
         rows: &rows,
+        comparisons: &comparisons,
         measurements: &measurements,
     })?;
     mhi_data::write_atomic(&a.out.join("report.json"), &json)?;
@@ -326,15 +491,16 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         .map(|r| TimePoint {
             label: config_label(&r.method, r.normals, r.planes),
             ms: r.ms_per_view,
-            psnr: r.psnr,
+            psnr: r.psnr_covered.unwrap_or(r.psnr),
         })
         .collect();
     mhi_eval::plot::error_vs_time(
         &a.out.join("error_vs_time"),
         &points,
         &format!(
-            "PSNR against time per view ({}x{}, {} triplets)",
-            size.0, size.1, meta.triplets
+            "covered PSNR against time per view ({}, {} triplets)",
+            size_label(&sizes_used),
+            meta.triplets
         ),
     )?;
     let curves = training_curves(&models)?;
@@ -346,187 +512,265 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             "validation PSNR during training",
         )?;
     }
-    let md = markdown(&meta, &rows, has_curves, &sample_md, a, &models);
+    let md = markdown(
+        &meta,
+        &rows,
+        &comparisons,
+        has_curves,
+        &sample_md,
+        a,
+        &models,
+    );
     mhi_data::write_atomic(&a.out.join("report.md"), md.as_bytes())?;
-    print_summary(&rows);
+    print_summary(&rows, &comparisons);
     println!("report: {}", a.out.join("report.md").display());
     Ok(())
 }
 
-#[allow(clippy::too_many_arguments)]
-fn run_methods(
-    a: &EvalArgs,
-    models: &[Loaded],
-    rf: &LoadedFrame,
-    sf: &LoadedFrame,
-    tf: &LoadedFrame,
-    sweep_grid: &[(usize, usize)],
-    oracle_grid: &[(usize, usize)],
-    ds: &Dataset,
-    seq: &mhi_data::Sequence,
-) -> anyhow::Result<Vec<Output>> {
-    let wants = |m: &str| a.methods.iter().any(|x| x == m);
+fn size_label(sizes: &[(u32, u32)]) -> String {
+    sizes
+        .iter()
+        .map(|(w, h)| format!("{w}x{h}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The comparisons the report draws, among the configurations present: learned against Soft on
+/// its own stage 1, against the sweep and against the MPI; MHI against MPI (N > 1 against N = 1
+/// at the same D) for the sweep and the oracle; the largest sweep against the nearest view.
+fn comparison_pairs(cfgs: &[Config]) -> Vec<(Config, Config)> {
+    let has = |c: &Config| cfgs.contains(c);
     let mut out = Vec::new();
-    if wants("nearest") {
-        let t0 = Instant::now();
-        let c = tf.camera.center_in_world();
-        let dr = (rf.camera.center_in_world() - c).length();
-        let ds_ = (sf.camera.center_in_world() - c).length();
-        let image = if dr <= ds_ {
-            rf.image.clone()
-        } else {
-            sf.image.clone()
-        };
-        out.push(Output {
-            method: "nearest".into(),
-            normals: 0,
-            planes: 0,
-            image,
-            times: Times {
-                blend_ms: ms(t0),
-                ..Times::default()
-            },
-        });
-    }
-    for m in models {
-        let model = &m.model;
-        let n = model.normals().len();
-        let is_mpi = n == 1;
-        if is_mpi && !wants("mpi") {
-            continue;
+    let mut push = |x: Config, y: Config| {
+        if has(&x) && has(&y) && !out.contains(&(x.clone(), y.clone())) {
+            out.push((x, y));
         }
-        if !is_mpi && !["learned", "soft", "hard", "avg"].iter().any(|x| wants(x)) {
-            continue;
+    };
+    let of = |m: &str| -> Vec<Config> { cfgs.iter().filter(|c| c.0 == m).cloned().collect() };
+    for l in of("learned") {
+        push(l.clone(), ("soft".into(), l.1, l.2));
+        let sweeps = of("sweep");
+        let same = sweeps.iter().find(|s| s.1 == l.1 && s.2 == l.2);
+        let any = sweeps.iter().filter(|s| s.1 == l.1).max_by_key(|s| s.2);
+        if let Some(s) = same.or(any) {
+            push(l.clone(), s.clone());
         }
-        let d = model.depths().len();
-        let t0 = Instant::now();
-        let volume = model.cost_volume(rf, sf)?;
-        let volume_ms = ms(t0);
-        let t1 = Instant::now();
-        let alphas = model.alphas(volume)?;
-        let network_ms = ms(t1);
-        let mhi = model.mhi(rf, alphas)?;
-        let t2 = Instant::now();
-        let r = render_mni(&mhi, &tf.camera)?;
-        let render_ms = ms(t2);
-        let base = Times {
-            volume_ms,
-            network_ms,
-            render_ms,
-            blend_ms: 0.0,
-        };
-        if is_mpi {
-            out.push(Output {
-                method: "mpi".into(),
-                normals: 1,
-                planes: d,
-                image: r.multi_normal[0].clone(),
-                times: base,
-            });
-            continue;
-        }
-        let mni = &r.multi_normal;
-        if wants("learned") {
-            let t3 = Instant::now();
-            let soft = heuristic_weights_for(
-                model.normals(),
-                &rf.camera,
-                &tf.camera,
-                BlendHeuristic::Soft,
-            );
-            let w = model.blend_weights(mni, &soft)?;
-            let image = combine(mni, &w);
-            out.push(Output {
-                method: "learned".into(),
-                normals: n,
-                planes: d,
-                image,
-                times: Times {
-                    blend_ms: ms(t3),
-                    ..base
-                },
-            });
-        }
-        for (name, h) in [
-            ("soft", BlendHeuristic::Soft),
-            ("hard", BlendHeuristic::Hard),
-            ("avg", BlendHeuristic::Avg),
-        ] {
-            if !wants(name) {
-                continue;
-            }
-            let t3 = Instant::now();
-            let w = heuristic_weights_for(model.normals(), &rf.camera, &tf.camera, h);
-            let image = combine(mni, &w);
-            out.push(Output {
-                method: name.into(),
-                normals: n,
-                planes: d,
-                image,
-                times: Times {
-                    blend_ms: ms(t3),
-                    ..base
-                },
-            });
+        for m in of("mpi") {
+            push(l.clone(), m);
         }
     }
-    for &(n, d) in sweep_grid {
-        let normals = NormalSet::paper_subset(n)?;
-        let depths = depths_linear_in_disparity(a.near, a.far, d)?;
-        let t0 = Instant::now();
-        let mhi = sweep_mhi(
-            &normals,
-            &depths,
-            &rf.camera,
-            &rf.image,
-            &sf.camera,
-            &sf.image,
-            &SweepConfig::default(),
-        )?;
-        let volume_ms = ms(t0);
-        let (image, render_ms, blend_ms) = render_soft(&mhi, tf)?;
-        out.push(Output {
-            method: "sweep".into(),
-            normals: n,
-            planes: d,
-            image,
-            times: Times {
-                volume_ms,
-                network_ms: 0.0,
-                render_ms,
-                blend_ms,
-            },
-        });
+    for method in ["sweep", "oracle"] {
+        for c in of(method).into_iter().filter(|c| c.1 > 1) {
+            push(c.clone(), (method.into(), 1, c.2));
+        }
     }
-    if !oracle_grid.is_empty() {
-        let scene = load_scene(&ds.dir.join(&seq.name).join("scene.json"))?;
-        let truth = crate::experiments::truth_of(&scene, &rf.camera);
-        for &(n, d) in oracle_grid {
-            let normals = NormalSet::paper_subset(n)?;
-            let depths = depths_linear_in_disparity(a.near, a.far, d)?;
-            let alpha = oracle_alpha(&normals, &depths, &rf.camera, &truth);
-            let mhi = Mhi::new(
-                normals,
-                depths,
-                rf.camera,
-                LayerColor::Shared(rf.image.clone()),
-                alpha,
-            )?;
-            let (image, render_ms, blend_ms) = render_soft(&mhi, tf)?;
+    if let Some(s) = of("sweep").into_iter().max_by_key(|c| (c.1 * c.2, c.1)) {
+        push(s, ("nearest".into(), 0, 0));
+    }
+    out
+}
+
+/// `img` with every pixel outside `covered` replaced by `truth`'s: the uncovered region then
+/// adds nothing to a whole-image metric such as LPIPS.
+fn with_uncovered_from(img: &Rgb32FImage, truth: &Rgb32FImage, covered: &[bool]) -> Rgb32FImage {
+    let mut o = img.clone();
+    for ((p, t), &c) in o.pixels_mut().zip(truth.pixels()).zip(covered) {
+        if !c {
+            *p = *t;
+        }
+    }
+    o
+}
+
+/// What every method of one evaluation shares.
+struct Ctx<'a> {
+    a: &'a EvalArgs,
+    models: &'a [Loaded],
+    sweep_grid: &'a [(usize, usize)],
+    oracle_grid: &'a [(usize, usize)],
+    sweep_config: SweepConfig,
+}
+
+impl Ctx<'_> {
+    fn wants(&self, m: Method) -> bool {
+        self.a.methods.contains(&m)
+    }
+
+    /// Every method's view of `tf` from the pair (`rf`, `sf`), timed from the decoded images.
+    fn run_methods(
+        &self,
+        rf: &LoadedFrame,
+        sf: &LoadedFrame,
+        tf: &LoadedFrame,
+        seq: &mhi_data::Sequence,
+    ) -> anyhow::Result<Vec<Output>> {
+        let a = self.a;
+        let mut out = Vec::new();
+        if self.wants(Method::Nearest) {
+            let t0 = Instant::now();
+            let c = tf.camera.center_in_world();
+            let dr = (rf.camera.center_in_world() - c).length();
+            let ds_ = (sf.camera.center_in_world() - c).length();
+            let image = if dr <= ds_ {
+                rf.image.clone()
+            } else {
+                sf.image.clone()
+            };
             out.push(Output {
-                method: "oracle".into(),
-                normals: n,
-                planes: d,
+                method: "nearest".into(),
+                normals: 0,
+                planes: 0,
                 image,
                 times: Times {
-                    render_ms,
-                    blend_ms,
+                    blend_ms: ms(t0),
                     ..Times::default()
                 },
             });
         }
+        for m in self.models {
+            let model = &m.model;
+            let n = model.normals().len();
+            let is_mpi = n == 1;
+            if is_mpi && !self.wants(Method::Mpi) {
+                continue;
+            }
+            let heuristics = [
+                (Method::Soft, "soft", BlendHeuristic::Soft),
+                (Method::Hard, "hard", BlendHeuristic::Hard),
+                (Method::Avg, "avg", BlendHeuristic::Avg),
+            ];
+            if !is_mpi
+                && !self.wants(Method::Learned)
+                && !heuristics.iter().any(|h| self.wants(h.0))
+            {
+                continue;
+            }
+            let d = model.depths().len();
+            let t0 = Instant::now();
+            let volume = model.cost_volume(rf, sf)?;
+            let volume_ms = ms(t0);
+            let t1 = Instant::now();
+            let alphas = model.alphas(volume)?;
+            let network_ms = ms(t1);
+            let t2 = Instant::now();
+            let mhi = model.mhi(rf, alphas)?;
+            let r = render_mni(&mhi, &tf.camera)?;
+            let render_ms = ms(t2);
+            let base = Times {
+                volume_ms,
+                network_ms,
+                render_ms,
+                blend_ms: 0.0,
+            };
+            if is_mpi {
+                out.push(Output {
+                    method: "mpi".into(),
+                    normals: 1,
+                    planes: d,
+                    image: r.multi_normal[0].clone(),
+                    times: base,
+                });
+                continue;
+            }
+            let mni = &r.multi_normal;
+            if self.wants(Method::Learned) {
+                let t3 = Instant::now();
+                let soft = heuristic_weights_for(
+                    model.normals(),
+                    &rf.camera,
+                    &tf.camera,
+                    BlendHeuristic::Soft,
+                );
+                let w = model.blend_weights(mni, &soft)?;
+                let image = combine(mni, &w);
+                out.push(Output {
+                    method: "learned".into(),
+                    normals: n,
+                    planes: d,
+                    image,
+                    times: Times {
+                        blend_ms: ms(t3),
+                        ..base
+                    },
+                });
+            }
+            for (which, name, h) in heuristics {
+                if !self.wants(which) {
+                    continue;
+                }
+                let t3 = Instant::now();
+                let w = heuristic_weights_for(model.normals(), &rf.camera, &tf.camera, h);
+                let image = combine(mni, &w);
+                out.push(Output {
+                    method: name.into(),
+                    normals: n,
+                    planes: d,
+                    image,
+                    times: Times {
+                        blend_ms: ms(t3),
+                        ..base
+                    },
+                });
+            }
+        }
+        for &(n, d) in self.sweep_grid {
+            let normals = NormalSet::paper_subset(n)?;
+            let depths = depths_linear_in_disparity(a.near, a.far, d)?;
+            let t0 = Instant::now();
+            let mhi = sweep_mhi(
+                &normals,
+                &depths,
+                &rf.camera,
+                &rf.image,
+                &sf.camera,
+                &sf.image,
+                &self.sweep_config,
+            )?;
+            let volume_ms = ms(t0);
+            let (image, render_ms, blend_ms) = render_soft(&mhi, tf)?;
+            out.push(Output {
+                method: "sweep".into(),
+                normals: n,
+                planes: d,
+                image,
+                times: Times {
+                    volume_ms,
+                    network_ms: 0.0,
+                    render_ms,
+                    blend_ms,
+                },
+            });
+        }
+        if !self.oracle_grid.is_empty() {
+            let scene = load_scene(&seq.dir().join("scene.json"))?;
+            let truth = crate::experiments::truth_of(&scene, &rf.camera);
+            for &(n, d) in self.oracle_grid {
+                let normals = NormalSet::paper_subset(n)?;
+                let depths = depths_linear_in_disparity(a.near, a.far, d)?;
+                let alpha = oracle_alpha(&normals, &depths, &rf.camera, &truth);
+                let mhi = Mhi::new(
+                    normals,
+                    depths,
+                    rf.camera,
+                    LayerColor::Shared(rf.image.clone()),
+                    alpha,
+                )?;
+                let (image, render_ms, blend_ms) = render_soft(&mhi, tf)?;
+                out.push(Output {
+                    method: "oracle".into(),
+                    normals: n,
+                    planes: d,
+                    image,
+                    times: Times {
+                        render_ms,
+                        blend_ms,
+                        ..Times::default()
+                    },
+                });
+            }
+        }
+        Ok(out)
     }
-    Ok(out)
 }
 
 /// The N multi-normal images of a view, exactly (no pruning).
@@ -595,9 +839,9 @@ fn write_samples(
     out: &Path,
     k: usize,
     t: &mhi_data::Triplet,
-    rf: &LoadedFrame,
-    sf: &LoadedFrame,
+    (rf, sf): (&LoadedFrame, &LoadedFrame),
     gt: &Rgb32FImage,
+    covered: &[bool],
     outputs: &[Output],
 ) -> anyhow::Result<String> {
     let dir = out.join("samples").join(format!("{k:03}"));
@@ -630,14 +874,28 @@ fn write_samples(
         save("source", &sf.image)?,
         save("ground_truth", gt)?
     );
-    let mut err_row = String::from("| | | *error ×4* |");
+    let mut dimmed = gt.clone();
+    for (p, &c) in dimmed.pixels_mut().zip(covered) {
+        if !c {
+            for v in &mut p.0 {
+                *v *= 0.25;
+            }
+        }
+    }
+    let mut err_row = format!(
+        "| | | <img src=\"{}\" width=\"160\"><br>*covered region (uncovered dimmed); below: error ×4* |",
+        save("covered", &dimmed)?
+    );
     for o in outputs {
         let name = file_label(o);
         let img = clipped(&o.image);
-        let p = mhi_eval::psnr(&img, gt)?;
+        let p = mhi_eval::psnr_masked(&img, gt, covered)?
+            .map_or("no covered pixel".to_string(), |p| {
+                format!("{p:.1} dB covered")
+            });
         let _ = write!(
             head,
-            " {} ({p:.1} dB) |",
+            " {} ({p}) |",
             config_label(&o.method, o.normals, o.planes)
         );
         let _ = write!(row, " <img src=\"{}\" width=\"160\"> |", save(&name, &img)?);
@@ -801,6 +1059,7 @@ fn training_curves(models: &[Loaded]) -> anyhow::Result<Vec<Curve>> {
 fn markdown(
     meta: &Meta,
     rows: &[Row],
+    comparisons: &[Comparison],
     has_curves: bool,
     samples: &str,
     a: &EvalArgs,
@@ -810,24 +1069,29 @@ fn markdown(
     let _ = writeln!(s, "# MHI evaluation report\n");
     let _ = writeln!(
         s,
-        "Dataset `{}` (split `{}`), {} triplets (rotation bins ≤2° / 2-4° / 4-8° / >8°: {} / {} / {} / {}), evaluated at {}x{}. {}. Machine: {}, {} threads, {}.\n",
+        "Dataset `{}` (split `{}`, {} sequences), {} triplets (rotation bins ≤2° / 2-4° / 4-8° / >8°: {} / {} / {} / {}), evaluated at {}. {}. Sweep: window radius {}, temperature {}. Intervals: 95 % percentile bootstrap over triplets ({} resamples, seed {}). Machine: {}, {} threads, {}.\n",
         meta.dataset,
         meta.split,
+        meta.sequences.len(),
         meta.triplets,
         meta.bin_counts[0],
         meta.bin_counts[1],
         meta.bin_counts[2],
         meta.bin_counts[3],
-        meta.size.0,
-        meta.size.1,
+        size_label(&meta.sizes),
         meta.lpips,
+        meta.sweep.window_radius,
+        meta.sweep.temperature,
+        meta.bootstrap.resamples,
+        meta.bootstrap.seed,
         meta.machine,
         meta.threads,
         meta.date
     );
     let _ = writeln!(
         s,
-        "Methods: `learned` = stage 1 + learned blending network; `soft`/`hard`/`avg` = the same stage 1 with the paper's heuristic blends; `mpi` = a run trained with N = 1 (the MPI baseline, same code); `sweep` = training-free plane-sweep MHI (photo-consistency, no network); `oracle` = MHI built from the scene's exact geometry with Soft blending (synthetic only; its time is render + blend only); `nearest` = the input view nearest the target, shown as it is. Scores are computed on images clipped to [0, 1]; times are wall-clock on this machine, one view at a time (cost volume / network / render of the N multi-normal images / blend).\n"
+        "Methods: `learned` = stage 1 + learned blending network; `soft`/`hard`/`avg` = the same stage 1 with the paper's heuristic blends; `mpi` = a run trained with N = 1 (the MPI baseline, same code); `sweep` = training-free plane-sweep MHI (photo-consistency, no network); `oracle` = MHI built from the scene's exact geometry with Soft blending (synthetic only; its time is render + blend only); `nearest` = the input view nearest the target, shown as it is. Scores are computed on images clipped to [0, 1]. Times are wall-clock on this machine, one view at a time, {}.\n",
+        meta.timing
     );
     for (m, r) in models.iter().zip(&meta.runs) {
         let c = m.model.config();
@@ -848,13 +1112,13 @@ fn markdown(
                 ""
             }
         );
-        let _ = r;
+        let _ = writeln!(s, "  (run record: {r})");
     }
     s.push('\n');
-    s.push_str(&report::markdown_tables(rows));
+    s.push_str(&report::markdown_tables(rows, comparisons));
     let _ = writeln!(
         s,
-        "## Error against time\n\n![error vs time](error_vs_time.svg)\n\nOne point per method and configuration (all triplets); the red line is the Pareto front. PNG: [error_vs_time.png](error_vs_time.png).\n"
+        "## Error against time\n\n![error vs time](error_vs_time.svg)\n\nCovered PSNR of each method and configuration (all triplets) against its time per view; the red line is the Pareto front. PNG: [error_vs_time.png](error_vs_time.png).\n"
     );
     if has_curves {
         let _ = writeln!(
@@ -890,20 +1154,39 @@ fn markdown(
     s
 }
 
-fn print_summary(rows: &[Row]) {
+fn print_summary(rows: &[Row], comparisons: &[Comparison]) {
     println!(
-        "{:<24} {:>6} {:>8} {:>7} {:>7} {:>10}",
-        "method", "views", "PSNR", "SSIM", "LPIPS", "ms/view"
+        "{:<24} {:>6} {:>22} {:>8} {:>8} {:>8} {:>10}",
+        "method", "views", "covered PSNR [95 %]", "cov.SSIM", "cov.LPIPS", "PSNR", "ms/view"
     );
+    let opt = |v: Option<f64>, p: usize| v.map_or("-".into(), |x| format!("{x:.p$}"));
     for r in rows.iter().filter(|r| r.bin == "all" && r.kind == "all") {
+        let cov = match (r.psnr_covered, r.psnr_covered_ci) {
+            (Some(p), Some(c)) => format!("{p:.2} [{:.2}, {:.2}]", c[0], c[1]),
+            _ => "-".into(),
+        };
         println!(
-            "{:<24} {:>6} {:>8.2} {:>7.3} {:>7} {:>10.1}",
+            "{:<24} {:>6} {:>22} {:>8} {:>8} {:>8.2} {:>10.1}",
             config_label(&r.method, r.normals, r.planes),
             r.count,
+            cov,
+            opt(r.ssim_covered, 3),
+            opt(r.lpips_covered, 3),
             r.psnr,
-            r.ssim,
-            r.lpips.map_or("-".into(), |l| format!("{l:.3}")),
             r.ms_per_view
+        );
+    }
+    for c in comparisons.iter().filter(|c| {
+        c.bin == "all" && c.kind == "all" && c.metric == mhi_eval::report::Metric::PsnrCovered
+    }) {
+        println!(
+            "{} − {}: covered PSNR {:+.2} dB [{:+.2}, {:+.2}] ({})",
+            c.a,
+            c.b,
+            c.diff,
+            c.ci[0],
+            c.ci[1],
+            c.verdict()
         );
     }
 }

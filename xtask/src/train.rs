@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use burn::tensor::Device;
 use clap::Args;
+use mhi_data::DataSource;
 use mhi_net::loss::TrainLoss;
 use mhi_net::{TrainConfig, Trainer};
 
@@ -15,10 +16,19 @@ pub struct TrainArgs {
     /// Run directory: config.json, log.csv, checkpoints, summary.json.
     #[arg(long, default_value = "out/runs/mhi")]
     pub run: PathBuf,
-    /// Dataset root in RealEstate10K layout (its train split is used); the default synthetic set
-    /// is generated if missing.
+    /// Dataset root in RealEstate10K layout (its train split is used); repeat to mix several
+    /// roots (e.g. synthetic + real). The default synthetic set is generated if missing.
+    /// Validation uses a root's `val` split when it has one, else its --holdout sequences.
     #[arg(long, default_value = "data/synth")]
-    pub data: PathBuf,
+    pub data: Vec<PathBuf>,
+    /// Weight of each --data root in the mix, in the same order (default: 1 each): a step draws
+    /// from a root with probability weight / total.
+    #[arg(long = "data-weight", value_delimiter = ',')]
+    pub data_weights: Vec<f64>,
+    /// Sequences kept out of training for validation, as ROOT/SEQUENCE with ROOT the folder name
+    /// of a --data root (e.g. `llff-6/room`); comma-separated or repeated.
+    #[arg(long, value_delimiter = ',')]
+    pub holdout: Vec<String>,
     /// Continue the run in --run from its latest checkpoint (other options are read from its
     /// config.json).
     #[arg(long)]
@@ -97,13 +107,59 @@ pub fn device(backend: &str) -> anyhow::Result<Device> {
     }
 }
 
+/// The data sources of `--data`, `--data-weight` and `--holdout`.
+pub fn sources(a: &TrainArgs) -> anyhow::Result<Vec<DataSource>> {
+    if !a.data_weights.is_empty() && a.data_weights.len() != a.data.len() {
+        bail!(
+            "--data-weight gives {} weights for {} --data roots; give one per root, in order",
+            a.data_weights.len(),
+            a.data.len()
+        );
+    }
+    let mut out: Vec<DataSource> = a
+        .data
+        .iter()
+        .enumerate()
+        .map(|(i, root)| DataSource {
+            weight: a.data_weights.get(i).copied().unwrap_or(1.0),
+            ..DataSource::train(root.clone())
+        })
+        .collect();
+    for h in &a.holdout {
+        let (root, seq) = h.split_once('/').with_context(|| {
+            format!("--holdout {h:?} must look like ROOT/SEQUENCE (e.g. llff-6/room)")
+        })?;
+        let Some(src) = out.iter_mut().find(|s| s.name() == root) else {
+            let names: Vec<String> = out.iter().map(DataSource::name).collect();
+            bail!(
+                "--holdout {h:?}: no --data root is named {root:?} (the roots are: {})",
+                names.join(", ")
+            );
+        };
+        src.holdout.push(seq.to_string());
+    }
+    for s in &out {
+        if !(s.weight.is_finite() && s.weight > 0.0) {
+            bail!(
+                "--data-weight {} for {} must be a positive number",
+                s.weight,
+                s.root.display()
+            );
+        }
+    }
+    Ok(out)
+}
+
 /// `cargo xtask train`.
 pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
-    crate::experiments::ensure_synthetic(&a.data)?;
+    if a.data.len() == 1 && a.data[0] == std::path::Path::new("data/synth") {
+        crate::experiments::ensure_synthetic(&a.data[0])?;
+    }
+    let sources = sources(a)?;
     let device = device(&a.backend)?.autodiff();
     let weights = crate::weights::cache_dir(a.cache.as_deref()).join("weights");
     let mut trainer = if a.resume {
-        Trainer::resume(&a.run, &a.data, Some(&weights), device)
+        Trainer::resume(&a.run, &a.data[0], Some(&weights), device)
             .with_context(|| format!("resuming {}", a.run.display()))?
     } else {
         let mut c = TrainConfig::for_normals(a.normals);
@@ -119,6 +175,7 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         c.seed = a.seed;
         c.checkpoint_every = a.checkpoint_every;
         c.val_samples = a.val_samples;
+        c.data = sources;
         let loss = match a.loss.as_str() {
             "photometric" => TrainLoss::Photometric,
             want => match TrainLoss::from_weights(Some(&weights), a.perceptual_weight, &device) {
@@ -135,7 +192,7 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
                 }
             },
         };
-        Trainer::new(c, &a.run, &a.data, loss, device)
+        Trainer::new(c, &a.run, &a.data[0], loss, device)
             .with_context(|| format!("starting {}", a.run.display()))?
     };
     let cfg = trainer.config().clone();
@@ -191,8 +248,9 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
     );
     let l = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.4}"));
     println!(
-        "held-out scores over {} samples (PSNR dB higher is better, LPIPS-alex lower is better):",
-        a.eval_samples
+        "validation scores over {} samples of {} (PSNR dB higher is better, LPIPS-alex lower is better):",
+        a.eval_samples,
+        trainer.validation_source()
     );
     println!("  {:<30} {:>8} {:>8}", "", "PSNR", "LPIPS");
     println!(
@@ -224,6 +282,7 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
     let summary = serde_json::json!({
         "steps": cfg.total_steps(), "elapsed_s": trainer.elapsed_s(), "normals": cfg.stage1.normals, "planes": cfg.planes,
         "eval_samples": a.eval_samples, "trained": scores, "untrained": untrained, "loss": cfg.loss,
+        "validation": trainer.validation_source(), "data": cfg.data,
     });
     mhi_data::write_atomic(
         &a.run.join("summary.json"),

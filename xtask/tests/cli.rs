@@ -382,7 +382,7 @@ fn eval_writes_a_complete_report_and_keeps_an_existing_one() {
         "--run",
         r,
         "--size",
-        "16x16",
+        "32x32",
         "--sweep-grid",
         "1x2,2x2",
         "--oracle-grid",
@@ -419,17 +419,40 @@ fn eval_writes_a_complete_report_and_keeps_an_existing_one() {
             "psnr",
             "ssim",
             "lpips",
+            "psnr_ci",
+            "psnr_covered",
+            "psnr_covered_ci",
+            "ssim_covered",
+            "lpips_covered",
+            "covered_fraction",
             "ms_per_view",
         ] {
             assert!(row.get(k).is_some(), "{k} missing in {row}");
         }
         assert!(row["psnr"].as_f64().unwrap().is_finite());
+        let ci = row["psnr_ci"].as_array().unwrap();
+        let (lo, hi) = (ci[0].as_f64().unwrap(), ci[1].as_f64().unwrap());
+        assert!(lo <= row["psnr"].as_f64().unwrap() && row["psnr"].as_f64().unwrap() <= hi);
         // No weights in the cache: LPIPS is absent, not invented.
         assert!(row["lpips"].is_null());
     }
+    // Paired comparisons: learned against Soft on its own stage 1, MHI against MPI.
+    let comps = v["comparisons"].as_array().unwrap();
+    let pairs: std::collections::BTreeSet<(String, String)> = comps
+        .iter()
+        .map(|c| (c["a"].to_string(), c["b"].to_string()))
+        .collect();
+    assert!(
+        pairs.contains(&("\"learned N=2 D=2\"".into(), "\"soft N=2 D=2\"".into())),
+        "{pairs:?}"
+    );
+    assert!(pairs.contains(&("\"sweep N=2 D=2\"".into(), "\"sweep N=1 D=2\"".into())));
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert!(
-        md.contains("### PSNR") && md.contains("N × D sweep: sweep"),
+        md.contains("#### PSNR")
+            && md.contains("#### Covered PSNR")
+            && md.contains("Paired comparisons")
+            && md.contains("N × D sweep: sweep"),
         "{md}"
     );
     for f in [

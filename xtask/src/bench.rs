@@ -131,8 +131,15 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     if a.train_step {
+        if a.runs == 0 {
+            bail!("--runs 0: at least one timed run is needed for a median");
+        }
         let weights = crate::weights::cache_dir(a.cache.as_deref()).join("weights");
-        let v = crate::step::train_step(&a.data, &weights, a.runs)?;
+        let mut v = crate::step::train_step(&a.data, &weights, a.runs)?;
+        if let Some(peer) = &a.peer {
+            let torch = crate::step::peer_train_step(&a.python, peer, a.threads, a.runs, &v)?;
+            v["peer"] = torch;
+        }
         if let Some(p) = &a.json {
             mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
         }

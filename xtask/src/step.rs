@@ -124,6 +124,78 @@ pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<se
     }))
 }
 
+/// Run the PyTorch twin of the training step (`../shared/peer/torch_train_step.py`) with the
+/// same shapes, loss, threads and runs, and print the ratio burn / PyTorch per part and for the
+/// split's sum. `ours` is [`train_step`]'s JSON. Returns the peer's JSON with the ratios added.
+pub fn peer_train_step(
+    python: &str,
+    peer: &Path,
+    threads: usize,
+    runs: usize,
+    ours: &serde_json::Value,
+) -> anyhow::Result<serde_json::Value> {
+    use anyhow::Context as _;
+    let loss = if ours["loss"].as_str().is_some_and(|l| l.contains("VGG")) {
+        "perceptual"
+    } else {
+        "photometric"
+    };
+    let tmp = tempfile::tempdir()?;
+    let out_json = tmp.path().join("peer.json");
+    println!("running the PyTorch peer {} ({loss} loss) ...", peer.display());
+    let status = std::process::Command::new(python)
+        .arg(peer)
+        .args(["--threads", &threads.to_string(), "--runs", &runs.to_string()])
+        .args(["--loss", loss, "--json"])
+        .arg(&out_json)
+        .status()
+        .with_context(|| format!("cannot start {python} {}", peer.display()))?;
+    if !status.success() {
+        anyhow::bail!(
+            "the peer {} failed ({status}); it needs `pip install torch torchvision`",
+            peer.display()
+        );
+    }
+    let text = std::fs::read_to_string(&out_json)
+        .with_context(|| format!("the peer wrote no {}", out_json.display()))?;
+    let mut torch: serde_json::Value = serde_json::from_str(text.trim())
+        .with_context(|| format!("the peer's JSON in {}", out_json.display()))?;
+    let parts = [
+        ("stage 1 forward", "stage1_forward_ms"),
+        ("stage 1 fwd+bwd", "stage1_forward_backward_ms"),
+        ("warp forward", "warp_forward_ms"),
+        ("warp fwd+bwd", "warp_forward_backward_ms"),
+        ("loss forward", "loss_forward_ms"),
+        ("loss fwd+bwd", "loss_forward_backward_ms"),
+    ];
+    println!(
+        "\n{:<20} {:>10} {:>10} {:>8}",
+        "part (same shapes)", "burn ms", "torch ms", "ratio"
+    );
+    let mut ratios = serde_json::Map::new();
+    let (mut sum_b, mut sum_t) = (0.0, 0.0);
+    for (name, key) in parts {
+        let (b, t) = (
+            ours[key].as_f64().unwrap_or(f64::NAN),
+            torch[key].as_f64().unwrap_or(f64::NAN),
+        );
+        if key.ends_with("backward_ms") {
+            sum_b += b;
+            sum_t += t;
+        }
+        println!("{name:<20} {b:>10.1} {t:>10.1} {:>7.2}x", b / t);
+        ratios.insert(key.into(), serde_json::json!(b / t));
+    }
+    println!(
+        "{:<20} {sum_b:>10.1} {sum_t:>10.1} {:>7.2}x  (stage 1 + warp + loss, forward and backward)",
+        "step",
+        sum_b / sum_t
+    );
+    ratios.insert("step".into(), serde_json::json!(sum_b / sum_t));
+    torch["ratio_burn_over_torch"] = serde_json::Value::Object(ratios);
+    Ok(torch)
+}
+
 /// Run one forward pass of the default model (cost volume → stage 1 → warp and composite → the
 /// blending network) on the flex backend and on `other`, with the same weights (saved from flex,
 /// loaded on the other device) and the same sample; report the largest differences and times.

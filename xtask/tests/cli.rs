@@ -537,3 +537,72 @@ fn render_names_the_bad_camera_row_and_refuses_missing_rows() {
     let err = fails(&v.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(err.contains("--src-row 9"), "{err}");
 }
+
+/// Training on a mix of two roots: the weights and the held-out sequence are recorded in
+/// config.json, validation draws from the held-out sequence, and a typo in a held-out root or
+/// sequence is an error naming what there is (and leaves no run behind).
+#[test]
+fn training_mixes_roots_with_weights_and_validates_on_held_out_sequences() {
+    let d = tempfile::tempdir().unwrap();
+    let (a, b) = (d.path().join("alpha"), d.path().join("beta"));
+    for (dir, seed) in [(&a, 1), (&b, 2)] {
+        std::fs::create_dir_all(dir).unwrap();
+        let config = SynthConfig {
+            scenes: 3,
+            frames: 4,
+            width: 32,
+            height: 24,
+            seed,
+            test_fraction: 0.0,
+            val_fraction: 0.0,
+            ..SynthConfig::default()
+        };
+        generate(&config, dir, &|| {}).unwrap();
+    }
+    let run = d.path().join("run");
+    let (r, sa, sb) = (
+        run.to_str().unwrap(),
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+    );
+    let mut args = train_args(r, sa, "1");
+    args.extend([
+        "--data",
+        sb,
+        "--data-weight",
+        "3,1",
+        "--holdout",
+        "beta/scene_00002",
+    ]);
+    let o = xtask(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let cfg: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("config.json")).unwrap()).unwrap();
+    let data = cfg["data"].as_array().unwrap();
+    assert_eq!(data.len(), 2);
+    assert_eq!(data[0]["weight"].as_f64(), Some(3.0));
+    assert_eq!(data[1]["holdout"][0].as_str(), Some("scene_00002"));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
+    let val = summary["validation"].as_str().unwrap();
+    assert!(val.contains("beta: held-out sequences scene_00002"), "{val}");
+
+    let bad = d.path().join("bad");
+    let b_ = bad.to_str().unwrap();
+    let mut args = train_args(b_, sa, "1");
+    args.extend(["--holdout", "gamma/scene_00002"]);
+    let err = fails(&args);
+    assert!(err.contains("gamma") && err.contains("alpha"), "{err}");
+    let mut args = train_args(b_, sa, "1");
+    args.extend(["--holdout", "alpha/scene_0009"]);
+    let err = fails(&args);
+    assert!(
+        err.contains("scene_0009") && err.contains("scene_00000"),
+        "{err}"
+    );
+    assert!(!bad.join("config.json").exists());
+    let mut args = train_args(b_, sa, "1");
+    args.extend(["--data-weight", "1,2"]);
+    let err = fails(&args);
+    assert!(err.contains("--data-weight"), "{err}");
+}

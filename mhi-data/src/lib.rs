@@ -45,7 +45,8 @@ pub use error::{Error, Result};
 pub use mix::{DataMix, DataSource};
 pub use re10k::{COLUMNS, CameraFile, CameraRow};
 pub use synth::{
-    Hit, Scene, Surface, SynthConfig, SynthSummary, Texture, generate, load_scene, make_scene,
+    Hit, INCOMPLETE_MARKER, Scene, Surface, SynthConfig, SynthSummary, Texture, generate,
+    load_scene, make_scene,
 };
 pub use triplets::{
     CLIP_LEN, RotationBin, SPARSE_CLIP_LEN, STRIDE_RANGE, Triplet, TripletIndex, TripletKind,
@@ -54,7 +55,27 @@ pub use triplets::{
 
 /// Write `bytes` to `path` atomically: to a temporary file beside it, then renamed into place,
 /// so an interrupted write never leaves a truncated file where a good one was.
+///
+/// A symbolic link is followed (its target is replaced, the link stays); a path that exists and
+/// is not a regular file (a directory, a device such as `/dev/full`, a pipe) is refused rather
+/// than replaced. The data is flushed to disk before the rename, so a full disk is an error.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let resolved;
+    let path = match std::fs::symlink_metadata(path) {
+        Ok(m) if m.file_type().is_symlink() => {
+            resolved = std::fs::canonicalize(path).map_err(|e| Error::io(path, e))?;
+            resolved.as_path()
+        }
+        _ => path,
+    };
+    if let Ok(m) = std::fs::metadata(path)
+        && !m.is_file()
+    {
+        return Err(Error::Dataset {
+            path: path.to_path_buf(),
+            fault: "exists and is not a regular file (a directory or a device); refusing to replace it: choose a file path".into(),
+        });
+    }
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -64,8 +85,45 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         .tempfile_in(dir)
         .map_err(|e| Error::io(dir, e))?;
     tmp.write_all(bytes).map_err(|e| Error::io(tmp.path(), e))?;
+    tmp.as_file()
+        .sync_all()
+        .map_err(|e| Error::io(tmp.path(), e))?;
     tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn atomic_writes_follow_links_and_refuse_special_files() {
+        let d = tempfile::tempdir().unwrap();
+        let target = d.path().join("target.txt");
+        std::fs::write(&target, "old").unwrap();
+        #[cfg(unix)]
+        {
+            let link = d.path().join("link.txt");
+            std::os::unix::fs::symlink(&target, &link).unwrap();
+            write_atomic(&link, b"new").unwrap();
+            assert!(
+                std::fs::symlink_metadata(&link)
+                    .unwrap()
+                    .file_type()
+                    .is_symlink()
+            );
+            assert_eq!(std::fs::read_to_string(&target).unwrap(), "new");
+        }
+        let e = write_atomic(d.path(), b"x").unwrap_err().to_string();
+        assert!(e.contains("not a regular file"), "{e}");
+        if Path::new("/dev/null").exists() {
+            let e = write_atomic(Path::new("/dev/null"), b"x")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("not a regular file"), "{e}");
+            assert!(!std::fs::metadata("/dev/null").unwrap().is_file());
+        }
+    }
 }
 
 /// Encode an 8-bit RGB image as PNG (fast compression) and write it atomically.

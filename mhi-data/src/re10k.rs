@@ -151,6 +151,78 @@ fn fault(path: &Path, line: usize, msg: impl Into<String>) -> Error {
     }
 }
 
+/// Normalised focal lengths outside this range are refused: a field of view wider than 170° or
+/// narrower than 1.1° is a unit or column mix-up, not a camera.
+pub const FOCAL_RANGE: std::ops::RangeInclusive<f64> = 0.02..=50.0;
+/// Normalised principal points outside this range (half an image beyond either border) are
+/// refused.
+pub const PRINCIPAL_POINT_RANGE: std::ops::RangeInclusive<f64> = -0.5..=1.5;
+/// Camera positions farther than this from the world origin are refused (RealEstate10K scenes
+/// span a few units; 1e6 leaves room for any scale a capture uses while catching overflow).
+pub const MAX_TRANSLATION: f64 = 1e6;
+
+/// Reject cameras that parse but cannot be right, with the column and the reason.
+fn check_plausible(v: &[f64; COLUMNS - 1], path: &Path, n: usize) -> Result<()> {
+    for (k, name) in [(0, "fx"), (1, "fy")] {
+        if !FOCAL_RANGE.contains(&v[k]) {
+            return Err(fault(
+                path,
+                n,
+                format!(
+                    "column {}: normalised focal length {name} = {} is outside [{}, {}] (a field of view between 1.1° and 170°); intrinsics are divided by the image width (fx, cx) and height (fy, cy)",
+                    k + 2,
+                    v[k],
+                    FOCAL_RANGE.start(),
+                    FOCAL_RANGE.end()
+                ),
+            ));
+        }
+    }
+    for (k, name) in [(2, "cx"), (3, "cy")] {
+        if !PRINCIPAL_POINT_RANGE.contains(&v[k]) {
+            return Err(fault(
+                path,
+                n,
+                format!(
+                    "column {}: normalised principal point {name} = {} lies more than half an image outside the image (expected within [{}, {}], 0.5 is the centre)",
+                    k + 2,
+                    v[k],
+                    PRINCIPAL_POINT_RANGE.start(),
+                    PRINCIPAL_POINT_RANGE.end()
+                ),
+            ));
+        }
+    }
+    for (k, name) in [(4, "k1"), (5, "k2")] {
+        if v[k] != 0.0 {
+            return Err(fault(
+                path,
+                n,
+                format!(
+                    "column {}: distortion {name} = {} is not zero; this project models undistorted pinhole cameras only (RealEstate10K's are), so undistort the frames first",
+                    k + 2,
+                    v[k]
+                ),
+            ));
+        }
+    }
+    for (k, name) in [(9, "t1"), (13, "t2"), (17, "t3")] {
+        if v[k].abs() > MAX_TRANSLATION {
+            return Err(fault(
+                path,
+                n,
+                format!(
+                    "column {}: translation {name} = {:e} is implausibly large (more than {:e} from the origin)",
+                    k + 2,
+                    v[k],
+                    MAX_TRANSLATION
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 fn parse_row(line: &str, path: &Path, n: usize) -> Result<CameraRow> {
     let tokens: Vec<&str> = line.split_whitespace().collect();
     if tokens.len() != COLUMNS {
@@ -198,6 +270,7 @@ fn parse_row(line: &str, path: &Path, n: usize) -> Result<CameraRow> {
             ),
         ));
     }
+    check_plausible(&v, path, n)?;
     let mut pose = [0.0; 12];
     pose.copy_from_slice(&v[6..18]);
     let cam_from_world = RigidTransform::from_row_major_3x4(&pose)
@@ -267,6 +340,31 @@ mod tests {
     }
 
     const ROW: &str = "1000 0.5 0.8 0.5 0.5 0 0 1 0 0 0.1 0 1 0 0.2 0 0 1 0.3";
+
+    #[test]
+    fn implausible_cameras_are_refused_naming_the_column() {
+        let row = |fx: &str, cx: &str, k1: &str, t1: &str| {
+            format!("url\n1000 {fx} 0.8 {cx} 0.5 {k1} 0 1 0 0 {t1} 0 1 0 0 0 0 1 0\n")
+        };
+        expect_fault(
+            &row("1e30", "0.5", "0", "0"),
+            2,
+            "column 2: normalised focal length fx",
+        );
+        expect_fault(&row("0.001", "0.5", "0", "0"), 2, "170°");
+        expect_fault(
+            &row("0.6", "50", "0", "0"),
+            2,
+            "column 4: normalised principal point cx",
+        );
+        expect_fault(&row("0.6", "0.5", "0.1", "0"), 2, "column 6: distortion k1");
+        expect_fault(
+            &row("0.6", "0.5", "0", "1e30"),
+            2,
+            "column 11: translation t1",
+        );
+        CameraFile::parse(&row("0.6", "0.5", "0", "3"), p()).unwrap();
+    }
 
     #[test]
     fn malformed_files_name_the_line_and_the_fault() {

@@ -868,6 +868,14 @@ pub fn generate(
     on_frame: &(dyn Fn() + Sync),
 ) -> Result<SynthSummary> {
     config.validate()?;
+    // Marks the set as incomplete until the last frame is written: an interrupted run leaves it,
+    // and `Dataset::open` then refuses the set instead of quietly training on a fraction of it.
+    let marker = out.join(INCOMPLETE_MARKER);
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    crate::write_atomic(
+        &marker,
+        b"synthetic generation started and has not finished; generate the set again\n",
+    )?;
     let n_test = config.test_scenes();
     let n_val = config.val_scenes();
     let scenes: Vec<(Scene, PathBuf)> = (0..config.scenes)
@@ -907,6 +915,7 @@ pub fn generate(
         on_frame();
         Ok::<(), Error>(())
     })?;
+    std::fs::remove_file(&marker).map_err(|e| Error::io(&marker, e))?;
     let names = |split: &str| {
         scenes
             .iter()
@@ -921,6 +930,9 @@ pub fn generate(
         frames: jobs.len(),
     })
 }
+
+/// File in a dataset root while [`generate`] has not finished writing it.
+pub const INCOMPLETE_MARKER: &str = "SYNTH_INCOMPLETE";
 
 /// Read a scene's `scene.json`.
 pub fn load_scene(path: &Path) -> Result<Scene> {

@@ -184,3 +184,16 @@ fn the_genuine_camera_file_parses() {
         assert!((t.rotation().determinant() - 1.0).abs() < 1e-12);
     }
 }
+
+/// A synthetic set whose generation was interrupted (its marker is still there) is refused by
+/// name, rather than opened with a fraction of its frames.
+#[test]
+fn an_interrupted_generation_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    tiny_dataset(d.path());
+    assert!(!d.path().join(mhi_data::INCOMPLETE_MARKER).exists());
+    Dataset::open(d.path(), "train", 3).unwrap();
+    std::fs::write(d.path().join(mhi_data::INCOMPLETE_MARKER), "x").unwrap();
+    let e = Dataset::open(d.path(), "train", 3).unwrap_err().to_string();
+    assert!(e.contains("incomplete dataset") && e.contains("interrupted"), "{e}");
+}

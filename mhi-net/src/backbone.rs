@@ -21,6 +21,16 @@ pub enum Net {
 }
 
 impl Net {
+    /// The smallest image side LPIPS with this network accepts: below it a feature map of the
+    /// deepest tap would have no pixel (AlexNet: conv1 11×11 stride 4, two 3×3 stride-2 max
+    /// pools → 31 px; VGG16: four 2×2 max pools → 16 px).
+    pub fn min_side(self) -> u32 {
+        match self {
+            Net::Alex => 32,
+            Net::Vgg16 => 16,
+        }
+    }
+
     /// File stem in the weights cache.
     pub fn file_stem(self) -> &'static str {
         match self {

@@ -122,6 +122,7 @@ impl TrainConfig {
     }
 
     fn validate(&self) -> crate::Result<()> {
+        self.normal_set()?;
         let m = 1usize << self.stage1.unet.levels.max(self.blend.levels);
         if !(self.width as usize).is_multiple_of(m) || !(self.height as usize).is_multiple_of(m) {
             return Err(Error::Config(format!(

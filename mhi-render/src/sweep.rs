@@ -230,10 +230,17 @@ pub fn sweep_mhi(
     // With no baseline every plane warps the source identically: the sweep has no parallax to
     // measure and would return an arbitrary depth.
     let baseline = (reference.center_in_world() - source.center_in_world()).length();
-    if !(baseline > 1e-9 * depths.iter().cloned().fold(1.0, f64::max)) {
-        return Err(Error::InvalidInput(format!(
-            "zero baseline: the reference and source cameras are {baseline:e} apart, so the plane sweep has no parallax; choose views taken from different places"
-        )));
+    let farthest = depths.iter().cloned().fold(1.0, f64::max);
+    if !(baseline > 1e-9 * farthest) {
+        return Err(Error::InvalidInput(if baseline > 0.0 && farthest > 1e6 {
+            format!(
+                "the farthest plane depth {farthest:e} is more than 1e9 times the baseline between the reference and source cameras ({baseline:e}); the planes cannot be told apart at that range: choose a far depth in the scene's units"
+            )
+        } else {
+            format!(
+                "zero baseline: the reference and source cameras are {baseline:e} apart, so the plane sweep has no parallax; choose views taken from different places"
+            )
+        }));
     }
     if !(cfg.temperature > 0.0) {
         return Err(Error::InvalidInput(format!(

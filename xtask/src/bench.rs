@@ -123,6 +123,9 @@ fn read_bandwidth() -> f64 {
 
 /// `cargo xtask bench`.
 pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
+    if a.runs == 0 {
+        bail!("--runs 0: at least one timed run is needed for a median");
+    }
     if let Some(other) = &a.compare_backend {
         let v = crate::step::backend_agreement(&a.data, other)?;
         if let Some(p) = &a.json {
@@ -131,9 +134,6 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     if a.train_step {
-        if a.runs == 0 {
-            bail!("--runs 0: at least one timed run is needed for a median");
-        }
         let weights = crate::weights::cache_dir(a.cache.as_deref()).join("weights");
         let mut v = crate::step::train_step(&a.data, &weights, a.runs)?;
         if let Some(peer) = &a.peer {

@@ -75,6 +75,12 @@ pub fn synth(a: &SynthArgs) -> anyhow::Result<()> {
         val_fraction: a.val_fraction,
         supersample: a.supersample,
     };
+    if a.out.join(mhi_data::INCOMPLETE_MARKER).exists() && !a.overwrite {
+        bail!(
+            "{} holds an incomplete synthetic set (an earlier synth was interrupted); pass --overwrite to generate it again",
+            a.out.display()
+        );
+    }
     for split in ["train", "val", "test"] {
         let d = a.out.join(split);
         if non_empty_dir(&d) && !a.overwrite {

@@ -106,8 +106,15 @@ struct Row {
 
 /// Make sure a synthetic dataset exists at `root` (generating the default one if not).
 pub fn ensure_synthetic(root: &Path) -> anyhow::Result<()> {
-    if root.join("test").is_dir() {
+    let interrupted = root.join(mhi_data::INCOMPLETE_MARKER).exists();
+    if root.join("test").is_dir() && !interrupted {
         return Ok(());
+    }
+    if interrupted {
+        eprintln!(
+            "{} holds an interrupted synthetic set: generating it again",
+            root.display()
+        );
     }
     eprintln!(
         "no synthetic data at {}: generating the default set (100 scenes, 256x256)",

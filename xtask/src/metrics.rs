@@ -46,6 +46,15 @@ pub fn metrics(a: &MetricsArgs) -> anyhow::Result<()> {
     let tx = mhi_render::diff::image_to_tensor(&x, &device);
     let ty = mhi_render::diff::image_to_tensor(&y, &device);
     for (name, net) in [("LPIPS-alex", Net::Alex), ("LPIPS-vgg", Net::Vgg16)] {
+        let m = net.min_side();
+        if x.width() < m || x.height() < m {
+            println!(
+                "{name:<10} n/a (needs at least {m}x{m} pixels; the images are {}x{})",
+                x.width(),
+                x.height()
+            );
+            continue;
+        }
         let bb = Backbone::load(&dir, net, &device)
             .with_context(|| format!("{name} needs the pretrained weights"))?;
         let v: Vec<f32> = bb
@@ -53,7 +62,14 @@ pub fn metrics(a: &MetricsArgs) -> anyhow::Result<()> {
             .into_data()
             .try_to_vec()
             .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-        println!("{name:<10} {:.4}", v[0]);
+        match v.first() {
+            Some(l) if l.is_finite() => println!("{name:<10} {l:.4}"),
+            other => bail!(
+                "{name} of {} and {} is {other:?}",
+                a.a.display(),
+                a.b.display()
+            ),
+        }
     }
     Ok(())
 }

@@ -142,10 +142,18 @@ pub fn peer_train_step(
     };
     let tmp = tempfile::tempdir()?;
     let out_json = tmp.path().join("peer.json");
-    println!("running the PyTorch peer {} ({loss} loss) ...", peer.display());
+    println!(
+        "running the PyTorch peer {} ({loss} loss) ...",
+        peer.display()
+    );
     let status = std::process::Command::new(python)
         .arg(peer)
-        .args(["--threads", &threads.to_string(), "--runs", &runs.to_string()])
+        .args([
+            "--threads",
+            &threads.to_string(),
+            "--runs",
+            &runs.to_string(),
+        ])
         .args(["--loss", loss, "--json"])
         .arg(&out_json)
         .status()

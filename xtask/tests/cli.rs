@@ -585,7 +585,10 @@ fn training_mixes_roots_with_weights_and_validates_on_held_out_sequences() {
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
     let val = summary["validation"].as_str().unwrap();
-    assert!(val.contains("beta: held-out sequences scene_00002"), "{val}");
+    assert!(
+        val.contains("beta: held-out sequences scene_00002"),
+        "{val}"
+    );
 
     let bad = d.path().join("bad");
     let b_ = bad.to_str().unwrap();
@@ -605,4 +608,83 @@ fn training_mixes_roots_with_weights_and_validates_on_held_out_sequences() {
     args.extend(["--data-weight", "1,2"]);
     let err = fails(&args);
     assert!(err.contains("--data-weight"), "{err}");
+}
+
+/// `metrics` on images too small for SSIM or LPIPS says which metric needs how many pixels,
+/// never panics and never prints NaN.
+#[test]
+fn metrics_on_tiny_images_name_the_minimum_size() {
+    let d = tempfile::tempdir().unwrap();
+    for side in [1u32, 5, 24] {
+        let a = d.path().join(format!("a{side}.png"));
+        let b = d.path().join(format!("b{side}.png"));
+        image::RgbImage::from_pixel(side, side, image::Rgb([10, 20, 30]))
+            .save(&a)
+            .unwrap();
+        image::RgbImage::from_pixel(side, side, image::Rgb([12, 20, 30]))
+            .save(&b)
+            .unwrap();
+        let o = xtask(&[
+            "metrics",
+            a.to_str().unwrap(),
+            b.to_str().unwrap(),
+            "--cache",
+            d.path().join("none").to_str().unwrap(),
+        ]);
+        let (out, err) = (
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr),
+        );
+        assert!(
+            !err.contains("panicked") && !out.contains("NaN"),
+            "{out}{err}"
+        );
+        assert!(out.contains("PSNR"), "{out}");
+        if side < 11 {
+            assert!(
+                out.contains("SSIM       n/a") && out.contains("11×11"),
+                "{out}"
+            );
+        }
+        assert!(
+            out.contains("LPIPS-alex n/a (needs at least 32x32 pixels"),
+            "{side}: {out}{err}"
+        );
+    }
+}
+
+/// A start that fails (an unsupported normal count) leaves nothing behind, so the same command
+/// with a fixed option starts cleanly; `bench --json` refuses a device and `--runs 0`.
+#[test]
+fn failed_starts_leave_nothing_and_special_files_are_not_replaced() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let run = d.path().join("run");
+    let (r, data) = (run.to_str().unwrap(), root.to_str().unwrap());
+    let mut args = train_args(r, data, "1");
+    let k = args.iter().position(|a| *a == "--normals").unwrap();
+    args[k + 1] = "4";
+    let err = fails(&args);
+    assert!(err.contains('4'), "{err}");
+    assert!(!run.join("config.json").exists() && !run.join("log.csv").exists());
+    let o = xtask(&train_args(r, data, "1"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+
+    let err = fails(&["bench", "--size", "16", "--planes", "2", "--runs", "0"]);
+    assert!(err.contains("--runs 0"), "{err}");
+    if std::path::Path::new("/dev/full").exists() {
+        let err = fails(&[
+            "bench",
+            "--size",
+            "16",
+            "--planes",
+            "2",
+            "--runs",
+            "1",
+            "--json",
+            "/dev/full",
+        ]);
+        assert!(err.contains("not a regular file"), "{err}");
+        assert!(!std::fs::metadata("/dev/full").unwrap().is_file());
+    }
 }

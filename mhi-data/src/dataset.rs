@@ -295,6 +295,10 @@ fn list_frames(seq_dir: &Path, seq: &str) -> Result<HashMap<u64, PathBuf>> {
             fault: format!("cannot list directory: {e}"),
         })?;
         let p = entry.path();
+        // A directory named like a frame (`123.png/`) is not a frame.
+        if !entry.file_type().is_file() && !p.is_file() {
+            continue;
+        }
         let Some(ext) = p
             .extension()
             .map(|e| e.to_string_lossy().to_ascii_lowercase())

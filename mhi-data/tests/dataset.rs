@@ -195,5 +195,8 @@ fn an_interrupted_generation_is_refused() {
     Dataset::open(d.path(), "train", 3).unwrap();
     std::fs::write(d.path().join(mhi_data::INCOMPLETE_MARKER), "x").unwrap();
     let e = Dataset::open(d.path(), "train", 3).unwrap_err().to_string();
-    assert!(e.contains("incomplete dataset") && e.contains("interrupted"), "{e}");
+    assert!(
+        e.contains("incomplete dataset") && e.contains("interrupted"),
+        "{e}"
+    );
 }

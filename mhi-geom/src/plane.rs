@@ -124,7 +124,7 @@ impl NormalSet {
             _ => {
                 return Err(Error::InvalidNormalSet {
                     reason: format!(
-                        "the paper defines N = 1, 2, 3 or 5 normals, not {n}; pass a custom set"
+                        "the paper defines sets of N = 1, 2, 3 or 5 normals, not {n} (other sets are built with NormalSet::custom)"
                     ),
                 });
             }

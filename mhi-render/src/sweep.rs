@@ -334,6 +334,42 @@ mod tests {
     }
 
     #[test]
+    fn a_pair_without_parallax_is_refused_naming_why() {
+        use mhi_geom::{Intrinsics, RigidTransform};
+        let k = Intrinsics::new(8.0, 8.0, 4.0, 4.0).unwrap();
+        let at = |x: f64| {
+            Camera::new(
+                k,
+                RigidTransform::new(glam::DMat3::IDENTITY, glam::DVec3::new(x, 0.0, 0.0)).unwrap(),
+                8,
+                8,
+            )
+            .unwrap()
+        };
+        let img = Rgb32FImage::new(8, 8);
+        let normals = NormalSet::paper_subset(1).unwrap();
+        let sweep = |src: &Camera, far: f64| {
+            sweep_mhi(
+                &normals,
+                &mhi_geom::depths_linear_in_disparity(1.0, far, 4).unwrap(),
+                &at(0.0),
+                &img,
+                src,
+                &img,
+                &SweepConfig::default(),
+            )
+            .unwrap_err()
+            .to_string()
+        };
+        assert!(sweep(&at(0.0), 100.0).contains("zero baseline"));
+        let e = sweep(&at(0.1), 1e30);
+        assert!(
+            e.contains("farthest plane depth") && !e.contains("zero baseline"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn box_filter_averages() {
         let c: Vec<f32> = (0..12).map(|v| v as f32).collect();
         let f = box_filter(&c, 4, 3, 1);

@@ -30,7 +30,7 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 2)]
     pub threads: usize,
     /// Number of normals (1, 2, 3 or 5).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = crate::data::parse_normals)]
     pub normals: usize,
     /// Planes per normal.
     #[arg(long, default_value_t = 32)]

@@ -151,10 +151,8 @@ pub fn parse_nd(s: &str) -> anyhow::Result<(usize, usize)> {
     let (n, d) = s
         .split_once(['x', 'X'])
         .with_context(|| format!("configuration {s:?} must look like 5x8 (normals x planes)"))?;
-    let n: usize = n
-        .trim()
-        .parse()
-        .with_context(|| format!("normals in {s:?}"))?;
+    let n = crate::data::parse_normals(n)
+        .map_err(|e| anyhow::anyhow!("configuration {s:?}: normals {e}"))?;
     let d: usize = d
         .trim()
         .parse()
@@ -248,11 +246,16 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         None => TripletIndex::sample(&ds, a.per_sequence, a.seed),
     };
     if index.triplets.is_empty() {
-        bail!(
-            "{}: no triplet to evaluate (--per-sequence is {}; each sequence needs at least 3 frames)",
-            ds.dir.display(),
-            a.per_sequence
-        );
+        match &a.index {
+            Some(p) => bail!("the index {} holds no triplet", p.display()),
+            None if a.per_sequence == 0 => {
+                bail!("--per-sequence 0 draws no triplet; give at least 1")
+            }
+            None => bail!(
+                "{}: no triplet to evaluate (each sequence needs at least 3 frames)",
+                ds.dir.display()
+            ),
+        }
     }
     let cpu = Device::flex();
     let mut models = Vec::new();
@@ -309,6 +312,23 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
                 )
             })?;
         }
+        let layers = sweep_grid
+            .iter()
+            .chain(&oracle_grid)
+            .map(|(n, d)| n * d)
+            .chain(
+                models
+                    .iter()
+                    .map(|m| m.model.normals().len() * m.model.depths().len() * 8),
+            )
+            .max()
+            .unwrap_or(1);
+        crate::data::check_memory(
+            &format!("evaluation size of sequence {}", seq.name),
+            size.0,
+            size.1,
+            layers,
+        )?;
         sizes.insert(seq.name.clone(), size);
     }
     let weights_dir = crate::weights::cache_dir(a.cache.as_deref()).join("weights");

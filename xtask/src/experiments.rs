@@ -412,7 +412,7 @@ pub struct SweepArgs {
     #[arg(long, default_value = "384x256", value_parser = crate::data::parse_size)]
     pub size: (u32, u32),
     /// Number of normals (paper subsets: 1, 2, 3 or 5).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = crate::data::parse_normals)]
     pub normals: usize,
     /// Number of planes per normal.
     #[arg(long, default_value_t = 32)]
@@ -462,11 +462,20 @@ pub fn sweep(a: &SweepArgs) -> anyhow::Result<()> {
             );
         }
     }
+    if a.reference == a.src || a.target == a.reference || a.target == a.src {
+        bail!(
+            "--ref {}, --src {} and --target {} must be three different frames: a view rendered from itself, or an MHI from one photo, says nothing",
+            a.reference,
+            a.src,
+            a.target
+        );
+    }
     mhi_data::check_same_size(&[
         &seq.frames[a.reference],
         &seq.frames[a.src],
         &seq.frames[a.target],
     ])?;
+    crate::data::check_memory("--size", a.size.0, a.size.1, a.normals * a.planes)?;
     let load = |i: usize| load_frame(&seq.frames[i], Some(a.size), Fit::Stretch);
     let (rf, sf, tf) = (load(a.reference)?, load(a.src)?, load(a.target)?);
     let normals = if a.normals == 5 {

@@ -47,7 +47,7 @@ pub struct RenderArgs {
     #[arg(long, value_parser = crate::data::parse_size)]
     pub size: Option<(u32, u32)>,
     /// Normals of the sweep MHI (1, 2, 3 or 5).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = crate::data::parse_normals)]
     pub normals: usize,
     /// Planes per normal of the sweep MHI.
     #[arg(long, default_value_t = 32)]
@@ -84,6 +84,18 @@ pub fn render(a: &RenderArgs) -> anyhow::Result<()> {
             );
         }
     }
+    if !(a.orbit_radius.is_finite() && a.orbit_radius > 0.0 && a.orbit_radius <= 10.0) {
+        bail!(
+            "--orbit-radius {} must be a number in (0, 10]: it is a fraction of the distance between the two photos' cameras (0.5 by default); farther, the orbit leaves what the photos saw",
+            a.orbit_radius
+        );
+    }
+    if a.reference == a.src {
+        bail!(
+            "--ref and --src are the same file ({}): the MHI needs two photos taken from different places",
+            a.reference.display()
+        );
+    }
     if a.ref_row == a.src_row {
         bail!(
             "--ref-row and --src-row are both {}: the two photos need two cameras",
@@ -119,6 +131,11 @@ pub fn render(a: &RenderArgs) -> anyhow::Result<()> {
     if let Some(m) = &learned {
         m.check_size(size.0, size.1)?;
     }
+    let layers = match &learned {
+        Some(m) => m.normals().len() * m.depths().len() * 8,
+        None => a.normals * a.planes,
+    };
+    crate::data::check_memory("--size", size.0, size.1, layers)?;
     let frame = |path: &PathBuf, row: usize| Frame {
         row: file.rows[row],
         path: path.clone(),

@@ -34,7 +34,7 @@ pub struct TrainArgs {
     #[arg(long)]
     pub resume: bool,
     /// Number of normals: 1 (the MPI baseline), 2, 3 or 5.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = crate::data::parse_normals)]
     pub normals: usize,
     /// Planes per normal.
     #[arg(long, default_value_t = 8)]

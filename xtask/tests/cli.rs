@@ -184,7 +184,9 @@ fn zero_baseline_pair() {
         "--out",
         o.to_str().unwrap(),
     ]);
-    assert!(err.contains("zero baseline"), "{err}");
+    // The same frame twice is caught before the sweep (whose own zero-baseline guard is
+    // tested in mhi-render).
+    assert!(err.contains("three different frames"), "{err}");
 }
 
 #[test]
@@ -665,7 +667,7 @@ fn failed_starts_leave_nothing_and_special_files_are_not_replaced() {
     let k = args.iter().position(|a| *a == "--normals").unwrap();
     args[k + 1] = "4";
     let err = fails(&args);
-    assert!(err.contains('4'), "{err}");
+    assert!(err.contains("choose 1 (an MPI), 2, 3 or 5"), "{err}");
     assert!(!run.join("config.json").exists() && !run.join("log.csv").exists());
     let o = xtask(&train_args(r, data, "1"));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -687,4 +689,25 @@ fn failed_starts_leave_nothing_and_special_files_are_not_replaced() {
         assert!(err.contains("not a regular file"), "{err}");
         assert!(!std::fs::metadata("/dev/full").unwrap().is_file());
     }
+}
+
+/// Sizes that cannot fit in memory are refused with the figure before anything is allocated;
+/// a sweep of a frame onto itself is refused.
+#[test]
+fn absurd_sizes_and_degenerate_frames_are_refused_up_front() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let data = root.to_str().unwrap();
+    let out = d.path().join("sweep");
+    let o_ = out.to_str().unwrap();
+    let mut args = sweep_args(data, o_);
+    let k = args.iter().position(|a| *a == "--size").unwrap();
+    args[k + 1] = "100000x100000";
+    let err = fails(&args);
+    assert!(err.contains("GB") && err.contains("--size"), "{err}");
+    let mut args = sweep_args(data, o_);
+    let k = args.iter().position(|a| *a == "--target").unwrap();
+    args[k + 1] = "0";
+    let err = fails(&args);
+    assert!(err.contains("three different frames"), "{err}");
 }

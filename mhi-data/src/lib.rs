@@ -92,6 +92,28 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     Ok(())
 }
 
+/// Encode an 8-bit RGB image as PNG (fast compression) and write it atomically.
+pub fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
+    use image::ImageEncoder as _;
+    let mut buf = Vec::new();
+    image::codecs::png::PngEncoder::new_with_quality(
+        &mut buf,
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Adaptive,
+    )
+    .write_image(
+        img.as_raw(),
+        img.width(),
+        img.height(),
+        image::ExtendedColorType::Rgb8,
+    )
+    .map_err(|source| Error::Image {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    write_atomic(path, &buf)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -124,26 +146,4 @@ mod tests {
             assert!(!std::fs::metadata("/dev/null").unwrap().is_file());
         }
     }
-}
-
-/// Encode an 8-bit RGB image as PNG (fast compression) and write it atomically.
-pub fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
-    use image::ImageEncoder as _;
-    let mut buf = Vec::new();
-    image::codecs::png::PngEncoder::new_with_quality(
-        &mut buf,
-        image::codecs::png::CompressionType::Fast,
-        image::codecs::png::FilterType::Adaptive,
-    )
-    .write_image(
-        img.as_raw(),
-        img.width(),
-        img.height(),
-        image::ExtendedColorType::Rgb8,
-    )
-    .map_err(|source| Error::Image {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    write_atomic(path, &buf)
 }

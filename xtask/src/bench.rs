@@ -45,6 +45,13 @@ pub struct BenchArgs {
     /// stage 1, warp, loss; forward and backward each) on a synthetic sample.
     #[arg(long)]
     pub train_step: bool,
+    /// Instead of the renderer, time every kind of op of the default model's training step on
+    /// its real shapes, forward and forward + backward; with --peer-ops, beside PyTorch.
+    #[arg(long)]
+    pub ops: bool,
+    /// The PyTorch twin of --ops (xtask/scripts/ops_torch.py).
+    #[arg(long)]
+    pub peer_ops: Option<PathBuf>,
     /// Instead of the renderer, run the default model's forward pass on flex and on this
     /// backend (`wgpu`, needs `--features wgpu`) with the same weights and compare.
     #[arg(long)]
@@ -108,6 +115,52 @@ fn scene(n: usize, d: usize, size: u32, per_layer: bool) -> anyhow::Result<(Mhi,
     Ok((Mhi::new(normals, depths, reference, color, alpha)?, target))
 }
 
+/// Run the PyTorch peer renderer on the bench's shapes; its median milliseconds and version.
+fn run_peer_render(
+    a: &BenchArgs,
+    peer: &std::path::Path,
+    shared: bool,
+) -> anyhow::Result<(f64, String)> {
+    let mut cmd = Command::new(&a.python);
+    cmd.arg(peer).args([
+        "--n",
+        &a.normals.to_string(),
+        "--d",
+        &a.planes.to_string(),
+        "--size",
+        &a.size.to_string(),
+        "--threads",
+        &a.threads.to_string(),
+        "--runs",
+        &a.runs.to_string(),
+    ]);
+    if shared {
+        cmd.arg("--shared-colour");
+    }
+    let out = cmd
+        .output()
+        .with_context(|| format!("cannot run {} {}", a.python, peer.display()))?;
+    if !out.status.success() {
+        bail!(
+            "peer renderer failed ({}): {}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    }
+    let text = String::from_utf8_lossy(&out.stdout);
+    let line = text
+        .lines()
+        .rev()
+        .find(|l| l.trim_start().starts_with('{'))
+        .context("peer printed no JSON line")?;
+    let v: serde_json::Value =
+        serde_json::from_str(line).with_context(|| format!("peer JSON {line:?}"))?;
+    let ms = v["median_ms"]
+        .as_f64()
+        .context("peer JSON lacks median_ms")?;
+    Ok((ms, v["torch"].as_str().unwrap_or("?").to_string()))
+}
+
 /// Read bandwidth in bytes/s: a parallel sum over 512 MiB, best of three.
 fn read_bandwidth() -> f64 {
     let v = vec![1.0_f32; 128 << 20];
@@ -128,6 +181,13 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
     }
     if let Some(other) = &a.compare_backend {
         let v = crate::step::backend_agreement(&a.data, other)?;
+        if let Some(p) = &a.json {
+            mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
+        }
+        return Ok(());
+    }
+    if a.ops {
+        let v = crate::ops::ops(&a.python, a.peer_ops.as_deref(), a.threads, a.runs)?;
         if let Some(p) = &a.json {
             mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
         }
@@ -191,57 +251,41 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
         bw / 1e9,
         render_ms / floor_ms
     );
-    let mut torch_ms = None;
+    // Like for like: our shared-colour render against the peer's `--shared-colour` layout,
+    // our per-layer render against the peer's RGBA-per-layer layout.
+    let (mut torch_shared, mut torch_per_layer) = (None, None);
     if let Some(peer) = &a.peer {
         if !peer.is_file() {
             bail!("peer renderer {} not found", peer.display());
         }
-        let out = Command::new(&a.python)
-            .arg(peer)
-            .args([
-                "--n",
-                &n.to_string(),
-                "--d",
-                &d.to_string(),
-                "--size",
-                &size.to_string(),
-                "--threads",
-                &a.threads.to_string(),
-                "--runs",
-                &a.runs.to_string(),
-            ])
-            .output()
-            .with_context(|| format!("cannot run {} {}", a.python, peer.display()))?;
-        if !out.status.success() {
-            bail!(
-                "peer renderer failed ({}): {}",
-                out.status,
-                String::from_utf8_lossy(&out.stderr).trim()
+        for shared in [true, false] {
+            let (ms, version) = run_peer_render(a, peer, shared)?;
+            let ours = if shared { render_ms } else { per_layer_ms };
+            println!(
+                "  PyTorch peer ({version}, {}): {ms:8.1} ms  → ratio {:.1}x",
+                if shared {
+                    "--shared-colour"
+                } else {
+                    "RGBA per layer "
+                },
+                ms / ours
             );
+            if shared {
+                torch_shared = Some(ms);
+            } else {
+                torch_per_layer = Some(ms);
+            }
         }
-        let text = String::from_utf8_lossy(&out.stdout);
-        let line = text
-            .lines()
-            .rev()
-            .find(|l| l.trim_start().starts_with('{'))
-            .context("peer printed no JSON line")?;
-        let v: serde_json::Value =
-            serde_json::from_str(line).with_context(|| format!("peer JSON {line:?}"))?;
-        let ms = v["median_ms"]
-            .as_f64()
-            .context("peer JSON lacks median_ms")?;
-        println!(
-            "  PyTorch peer ({}):            {ms:8.1} ms  → ratio {:.1}x",
-            v["torch"].as_str().unwrap_or("?"),
-            ms / render_ms
-        );
-        torch_ms = Some(ms);
     }
+    let ratio_shared = torch_shared.map(|t| t / render_ms);
+    let ratio_per_layer = torch_per_layer.map(|t| t / per_layer_ms);
     if let Some(p) = &a.json {
         let v = serde_json::json!({
             "normals": n, "planes": d, "size": size, "threads": a.threads, "runs": a.runs,
             "render_ms": render_ms, "pruned_ms": pruned_ms, "per_layer_color_ms": per_layer_ms,
-            "torch_ms": torch_ms, "ratio": torch_ms.map(|t| t / render_ms),
+            "torch_shared_ms": torch_shared, "torch_per_layer_ms": torch_per_layer,
+            "ratio_shared": ratio_shared, "ratio_per_layer": ratio_per_layer,
+            "floor_ratio": render_ms / floor_ms,
             "floor_bytes": bytes, "bandwidth_gbs": bw / 1e9, "floor_ms": floor_ms,
         });
         mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;

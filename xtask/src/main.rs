@@ -6,6 +6,7 @@ mod demo;
 mod eval;
 mod experiments;
 mod metrics;
+mod ops;
 mod progress;
 mod render;
 mod stability;

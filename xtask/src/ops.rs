@@ -1,0 +1,330 @@
+//! `cargo xtask bench --ops`: every kind of op of the default model's training step timed alone
+//! on its real shapes (stage 1's 3D U-Net at 64 × 64 with N = 5, D = 8; the VGG16 taps of the
+//! perceptual loss; the warp's grid sample; layer norm through permutes), forward and forward +
+//! backward, beside the same ops in PyTorch (`xtask/scripts/ops_torch.py`) in the same run.
+
+use std::path::Path;
+
+use anyhow::Context as _;
+use burn::tensor::module::{conv_transpose3d, conv2d, conv3d};
+use burn::tensor::ops::{ConvOptions, ConvTransposeOptions, GridSampleOptions};
+use burn::tensor::{Device, Distribution, Tensor};
+
+use crate::bench::median_ms;
+
+/// One op at one shape: what it is and its parameters, shared with the PyTorch twin.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct OpSpec {
+    /// Key shared with the PyTorch script.
+    pub name: String,
+    /// `conv3d`, `convT3d`, `layernorm5`, `conv2d`, `grid_sample`.
+    pub kind: &'static str,
+    /// Input shape.
+    pub input: Vec<usize>,
+    /// Output channels (convolutions).
+    pub cout: usize,
+    /// Stride in the image axes.
+    pub stride: usize,
+    /// Dilation in the image axes.
+    pub dilation: usize,
+}
+
+/// The ops of one phase-1 step of the default model (N = 5, D = 8, 64 × 64, widths 8/16/32).
+pub fn default_ops() -> Vec<OpSpec> {
+    let (n, d) = (5, 8);
+    let op = |name: &str, kind, input: Vec<usize>, cout, stride, dilation| OpSpec {
+        name: name.into(),
+        kind,
+        input,
+        cout,
+        stride,
+        dilation,
+    };
+    vec![
+        op(
+            "stem conv3d 6→8 @64",
+            "conv3d",
+            vec![n, 6, d, 64, 64],
+            8,
+            1,
+            1,
+        ),
+        op(
+            "down conv3d 8→16 s2 @64",
+            "conv3d",
+            vec![n, 8, d, 64, 64],
+            16,
+            2,
+            1,
+        ),
+        op(
+            "down conv3d 16→32 s2 @32",
+            "conv3d",
+            vec![n, 16, d, 32, 32],
+            32,
+            2,
+            1,
+        ),
+        op(
+            "mid conv3d 32→32 d1 @16",
+            "conv3d",
+            vec![n, 32, d, 16, 16],
+            32,
+            1,
+            1,
+        ),
+        op(
+            "mid conv3d 32→32 d4 @16",
+            "conv3d",
+            vec![n, 32, d, 16, 16],
+            32,
+            1,
+            4,
+        ),
+        op(
+            "dec conv3d 32→16 @32",
+            "conv3d",
+            vec![n, 32, d, 32, 32],
+            16,
+            1,
+            1,
+        ),
+        op(
+            "dec conv3d 16→8 @64",
+            "conv3d",
+            vec![n, 16, d, 64, 64],
+            8,
+            1,
+            1,
+        ),
+        op(
+            "up convT3d 32→16 @16",
+            "convT3d",
+            vec![n, 32, d, 16, 16],
+            16,
+            2,
+            1,
+        ),
+        op(
+            "up convT3d 16→8 @32",
+            "convT3d",
+            vec![n, 16, d, 32, 32],
+            8,
+            2,
+            1,
+        ),
+        op(
+            "layernorm C=8 @64 (permutes)",
+            "layernorm5",
+            vec![n, 8, d, 64, 64],
+            8,
+            1,
+            1,
+        ),
+        op(
+            "grid_sample 40 layers @64",
+            "grid_sample",
+            vec![n * d, 4, 64, 64],
+            4,
+            1,
+            1,
+        ),
+        op(
+            "vgg conv2d 3→64 @64",
+            "conv2d",
+            vec![6, 3, 64, 64],
+            64,
+            1,
+            1,
+        ),
+        op(
+            "vgg conv2d 64→64 @64",
+            "conv2d",
+            vec![6, 64, 64, 64],
+            64,
+            1,
+            1,
+        ),
+        op(
+            "vgg conv2d 128→128 @32",
+            "conv2d",
+            vec![6, 128, 32, 32],
+            128,
+            1,
+            1,
+        ),
+        op(
+            "vgg conv2d 256→256 @16",
+            "conv2d",
+            vec![6, 256, 16, 16],
+            256,
+            1,
+            1,
+        ),
+        op(
+            "vgg conv2d 512→512 @8",
+            "conv2d",
+            vec![6, 512, 8, 8],
+            512,
+            1,
+            1,
+        ),
+    ]
+}
+
+fn rand<const D: usize>(shape: [usize; D], device: &Device) -> Tensor<D> {
+    Tensor::random(shape, Distribution::Uniform(-1.0, 1.0), device)
+}
+
+fn dims5(v: &[usize]) -> [usize; 5] {
+    [v[0], v[1], v[2], v[3], v[4]]
+}
+
+fn dims4(v: &[usize]) -> [usize; 4] {
+    [v[0], v[1], v[2], v[3]]
+}
+
+/// The op as a closure returning a scalar, its inputs on `device` (tracked when `grad`).
+fn op_fn(op: &OpSpec, device: &Device, grad: bool) -> Box<dyn Fn() -> Tensor<1>> {
+    let (s, dl) = (op.stride, op.dilation);
+    let g = |t: Tensor<5>| if grad { t.require_grad() } else { t };
+    let g4 = |t: Tensor<4>| if grad { t.require_grad() } else { t };
+    match op.kind {
+        "conv3d" => {
+            let x = g(rand(dims5(&op.input), device));
+            let w = g(rand([op.cout, op.input[1], 3, 3, 3], device));
+            let o = ConvOptions::new([1, s, s], [1, dl, dl], [1, dl, dl], 1);
+            Box::new(move || conv3d(x.clone(), w.clone(), None, o.clone()).mean())
+        }
+        "convT3d" => {
+            let x = g(rand(dims5(&op.input), device));
+            let w = g(rand([op.input[1], op.cout, 1, 2, 2], device));
+            let o = ConvTransposeOptions::new([1, s, s], [0, 0, 0], [0, 0, 0], [1, 1, 1], 1);
+            Box::new(move || conv_transpose3d(x.clone(), w.clone(), None, o.clone()).mean())
+        }
+        "layernorm5" => {
+            let norm = burn::nn::LayerNormConfig::new(op.input[1]).init(device);
+            let x = g(rand(dims5(&op.input), device));
+            Box::new(move || {
+                norm.forward(x.clone().permute([0, 2, 3, 4, 1]))
+                    .permute([0, 4, 1, 2, 3])
+                    .mean()
+            })
+        }
+        "conv2d" => {
+            let x = g4(rand(dims4(&op.input), device));
+            let w = g4(rand([op.cout, op.input[1], 3, 3], device));
+            let o = ConvOptions::new([1, 1], [1, 1], [1, 1], 1);
+            Box::new(move || conv2d(x.clone(), w.clone(), None, o.clone()).mean())
+        }
+        _ => {
+            // grid_sample: bilinear, zero padding, the warp's layout.
+            let [b, c, h, w] = dims4(&op.input);
+            let x = g4(rand([b, c, h, w], device));
+            let grid: Tensor<4> = rand([b, h, w, 2], device);
+            Box::new(move || {
+                x.clone()
+                    .grid_sample_2d(grid.clone(), GridSampleOptions::default())
+                    .mean()
+            })
+        }
+    }
+}
+
+/// Forward (plain device, no graph) and forward + backward (autodiff device) median
+/// milliseconds of one op in burn.
+fn time_burn(op: &OpSpec, runs: usize) -> (f64, f64) {
+    let plain = Device::flex();
+    let fwd = op_fn(op, &plain, false);
+    let f = median_ms(runs, || {
+        let _ = fwd().into_data();
+    });
+    let both = op_fn(op, &plain.autodiff(), true);
+    let b = median_ms(runs, || {
+        let _ = both().backward();
+    });
+    (f, b)
+}
+
+/// Time every op in burn and, with `peer`, in PyTorch; print the table and return it as JSON.
+pub fn ops(
+    python: &str,
+    peer: Option<&Path>,
+    threads: usize,
+    runs: usize,
+) -> anyhow::Result<serde_json::Value> {
+    let specs = default_ops();
+    let torch: Option<serde_json::Value> = match peer {
+        Some(script) => {
+            let tmp = tempfile::tempdir()?;
+            let spec_path = tmp.path().join("ops.json");
+            std::fs::write(&spec_path, serde_json::to_vec(&specs)?)?;
+            println!("running the PyTorch twin {} ...", script.display());
+            let out = std::process::Command::new(python)
+                .arg(script)
+                .arg(&spec_path)
+                .args([
+                    "--threads",
+                    &threads.to_string(),
+                    "--runs",
+                    &runs.to_string(),
+                ])
+                .output()
+                .with_context(|| format!("cannot start {python} {}", script.display()))?;
+            if !out.status.success() {
+                anyhow::bail!(
+                    "{} failed ({}): {} (it needs `pip install torch`)",
+                    script.display(),
+                    out.status,
+                    String::from_utf8_lossy(&out.stderr).trim()
+                );
+            }
+            let text = String::from_utf8_lossy(&out.stdout);
+            let line = text
+                .lines()
+                .rev()
+                .find(|l| l.starts_with('{'))
+                .context("the PyTorch twin printed no JSON line")?;
+            Some(serde_json::from_str(line)?)
+        }
+        None => None,
+    };
+    println!(
+        "\n{:<30} {:>9} {:>9} {:>9} {:>9} {:>7} {:>7}",
+        "op (forward; fwd+bwd)", "burn fwd", "torch", "burn f+b", "torch", "fwd ×", "f+b ×"
+    );
+    let mut rows = Vec::new();
+    let (mut sum_b, mut sum_t) = (0.0, 0.0);
+    for op in &specs {
+        let (bf, bb) = time_burn(op, runs);
+        let t = torch.as_ref().and_then(|t| t["ops"].get(&op.name));
+        let tf = t.and_then(|t| t["forward_ms"].as_f64());
+        let tb = t.and_then(|t| t["forward_backward_ms"].as_f64());
+        sum_b += bb;
+        sum_t += tb.unwrap_or(f64::NAN);
+        let f = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.1}"));
+        let r = |a: f64, b: Option<f64>| b.map_or("-".to_string(), |b| format!("{:.1}", a / b));
+        println!(
+            "{:<30} {bf:>9.1} {:>9} {bb:>9.1} {:>9} {:>7} {:>7}",
+            op.name,
+            f(tf),
+            f(tb),
+            r(bf, tf),
+            r(bb, tb)
+        );
+        rows.push(serde_json::json!({
+            "op": op.name, "burn_forward_ms": bf, "burn_forward_backward_ms": bb,
+            "torch_forward_ms": tf, "torch_forward_backward_ms": tb,
+        }));
+    }
+    println!(
+        "{:<30} {:>9} {:>9} {sum_b:>9.1} {:>9.1} {:>7} {:>7.1}",
+        "sum (fwd+bwd)",
+        "",
+        "",
+        sum_t,
+        "",
+        sum_b / sum_t
+    );
+    Ok(serde_json::json!({ "threads": threads, "runs": runs, "ops": rows, "torch": torch }))
+}

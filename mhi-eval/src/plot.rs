@@ -204,38 +204,94 @@ fn draw_error_vs_time<DB: DrawingBackend>(
     Ok(())
 }
 
+/// Axis titles of a line figure, and whether both axes are logarithmic.
+#[derive(Debug, Clone, Copy)]
+pub struct Axes<'a> {
+    /// Title of the x axis.
+    pub x: &'a str,
+    /// Title of the y axis.
+    pub y: &'a str,
+    /// Both axes on a log scale (for power laws: a slope is an exponent).
+    pub log: bool,
+}
+
 fn draw_curves<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     curves: &[Curve],
     title: &str,
+    axes: &Axes<'_>,
 ) -> Result<(), String> {
     let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     root.fill(&WHITE).map_err(e)?;
     let all = curves.iter().flat_map(|c| c.points.iter().copied());
-    let (_, xhi) = range(all.clone().map(|p| p.0), 0.05);
-    let (ylo, yhi) = range(all.map(|p| p.1), 0.1);
-    let mut chart = ChartBuilder::on(root)
-        .caption(title, ("sans-serif", 22))
-        .margin(16)
-        .x_label_area_size(44)
-        .y_label_area_size(64)
-        .build_cartesian_2d(0.0..xhi.max(1.0), ylo..yhi)
-        .map_err(e)?;
-    chart
-        .configure_mesh()
-        .x_desc("wall-clock training time (s)")
-        .y_desc("validation PSNR (dB)")
-        .label_style(("sans-serif", 15))
-        .draw()
-        .map_err(e)?;
+    let builder = |root| {
+        let mut b = ChartBuilder::on(root);
+        b.caption(title, ("sans-serif", 22))
+            .margin(16)
+            .x_label_area_size(44)
+            .y_label_area_size(72);
+        b
+    };
+    if axes.log {
+        let pos = |v: f64| v.is_finite() && v > 0.0;
+        let xs = all.clone().map(|p| p.0).filter(|v| pos(*v));
+        let ys = all.clone().map(|p| p.1).filter(|v| pos(*v));
+        let lo_hi = |v: &mut dyn Iterator<Item = f64>| {
+            let (lo, hi) = v.fold((f64::INFINITY, 0.0_f64), |(l, h), x| (l.min(x), h.max(x)));
+            if lo.is_finite() && hi > 0.0 {
+                (lo / 1.5, hi * 1.5)
+            } else {
+                (0.1, 10.0)
+            }
+        };
+        let (xlo, xhi) = lo_hi(&mut xs.clone());
+        let (ylo, yhi) = lo_hi(&mut ys.clone());
+        let mut chart = builder(root)
+            .build_cartesian_2d((xlo..xhi).log_scale(), (ylo..yhi).log_scale())
+            .map_err(e)?;
+        chart
+            .configure_mesh()
+            .x_desc(axes.x)
+            .y_desc(axes.y)
+            .label_style(("sans-serif", 15))
+            .draw()
+            .map_err(e)?;
+        draw_series(&mut chart, curves).map_err(e)?;
+        legend(&mut chart).map_err(e)?;
+    } else {
+        let (_, xhi) = range(all.clone().map(|p| p.0), 0.05);
+        let (ylo, yhi) = range(all.map(|p| p.1), 0.1);
+        let mut chart = builder(root)
+            .build_cartesian_2d(0.0..xhi.max(1.0), ylo..yhi)
+            .map_err(e)?;
+        chart
+            .configure_mesh()
+            .x_desc(axes.x)
+            .y_desc(axes.y)
+            .label_style(("sans-serif", 15))
+            .draw()
+            .map_err(e)?;
+        draw_series(&mut chart, curves).map_err(e)?;
+        legend(&mut chart).map_err(e)?;
+    }
+    Ok(())
+}
+
+fn draw_series<'a, DB: DrawingBackend + 'a, X, Y>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    curves: &[Curve],
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>>
+where
+    X: Ranged<ValueType = f64>,
+    Y: Ranged<ValueType = f64>,
+{
     for (i, c) in curves.iter().enumerate() {
         let color = COLORS[i % COLORS.len()];
         chart
             .draw_series(LineSeries::new(
                 c.points.iter().copied(),
                 ShapeStyle::from(&color).stroke_width(2),
-            ))
-            .map_err(e)?
+            ))?
             .label(c.label.clone())
             .legend(move |(x, y)| {
                 PathElement::new(
@@ -243,10 +299,18 @@ fn draw_curves<DB: DrawingBackend>(
                     ShapeStyle::from(&color).stroke_width(2),
                 )
             });
-        chart
-            .draw_series(c.points.iter().map(|&p| Circle::new(p, 3, color.filled())))
-            .map_err(e)?;
+        chart.draw_series(c.points.iter().map(|&p| Circle::new(p, 3, color.filled())))?;
     }
+    Ok(())
+}
+
+fn legend<'a, DB: DrawingBackend + 'a, X, Y>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>>
+where
+    X: Ranged<ValueType = f64>,
+    Y: Ranged<ValueType = f64>,
+{
     chart
         .configure_series_labels()
         .background_style(WHITE.mix(0.8))
@@ -254,8 +318,6 @@ fn draw_curves<DB: DrawingBackend>(
         .label_font(("sans-serif", 14))
         .position(SeriesLabelPosition::LowerRight)
         .draw()
-        .map_err(e)?;
-    Ok(())
 }
 
 /// `stem.svg` and `stem.png`: PSNR against milliseconds per view (log scale), one labelled point
@@ -267,7 +329,17 @@ pub fn error_vs_time(stem: &Path, points: &[TimePoint], title: &str) -> Result<(
 /// `stem.svg` and `stem.png`: validation PSNR against wall-clock training time, one line per
 /// curve.
 pub fn training_curve(stem: &Path, curves: &[Curve], title: &str) -> Result<(), PlotError> {
-    svg_and_png!(stem, draw_curves, curves, title)
+    let axes = Axes {
+        x: "wall-clock training time (s)",
+        y: "validation PSNR (dB)",
+        log: false,
+    };
+    svg_and_png!(stem, draw_curves, curves, title, &axes)
+}
+
+/// `stem.svg` and `stem.png`: curves on given axes (log-log for power laws).
+pub fn lines(stem: &Path, curves: &[Curve], title: &str, axes: &Axes<'_>) -> Result<(), PlotError> {
+    svg_and_png!(stem, draw_curves, curves, title, axes)
 }
 
 #[cfg(test)]
@@ -307,6 +379,17 @@ mod tests {
             points: vec![(0.0, 10.0), (50.0, 12.0), (100.0, 13.0)],
         }];
         training_curve(&d.path().join("t"), &curves, "curve").unwrap();
+        let axes = Axes {
+            x: "pixels",
+            y: "ms",
+            log: true,
+        };
+        lines(&d.path().join("l"), &curves[..], "log-log", &axes).unwrap();
+        assert!(
+            std::fs::read_to_string(d.path().join("l.svg"))
+                .unwrap()
+                .contains("learned")
+        );
         assert!(d.path().join("t.png").is_file() && d.path().join("t.svg").is_file());
     }
 }

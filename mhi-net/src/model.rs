@@ -57,6 +57,23 @@ impl Model {
         })
     }
 
+    /// The networks of `config` with their initial weights (the seed's): what a run starts
+    /// from. Costs exactly what a trained model costs, so benchmarks of inference use it.
+    pub fn untrained(config: TrainConfig, device: Device) -> crate::Result<Self> {
+        let (stage1, blend) = crate::train::init_models(&config, &device);
+        let normals = config.normal_set()?;
+        let depths = depths_linear_in_disparity(config.near, config.far, config.planes)?;
+        Ok(Self {
+            config,
+            normals,
+            depths,
+            stage1,
+            blend,
+            device,
+            step: 0,
+        })
+    }
+
     /// The run's configuration.
     pub fn config(&self) -> &TrainConfig {
         &self.config

@@ -45,6 +45,15 @@ pub struct BenchArgs {
     /// stage 1, warp, loss; forward and backward each) on a synthetic sample.
     #[arg(long)]
     pub train_step: bool,
+    /// Instead of one view, measure how the time of a view grows with image size (64 → 1024),
+    /// planes (8 → 128), normals (1 → 9) and threads (1, 2) for the renderer, the sweep and the
+    /// learned model's inference; writes scaling.csv and log-log figures into --scaling-out
+    /// and prints the fitted exponents.
+    #[arg(long)]
+    pub scaling: bool,
+    /// Output directory of --scaling.
+    #[arg(long, default_value = "out/scaling")]
+    pub scaling_out: PathBuf,
     /// Instead of the renderer, time every kind of op of the default model's training step on
     /// its real shapes, forward and forward + backward; with --peer-ops, beside PyTorch.
     #[arg(long)]
@@ -83,7 +92,7 @@ pub fn median_ms(runs: usize, mut f: impl FnMut()) -> f64 {
 
 /// The peer's scene: K = [[W/2, 0, W/2], [0, W/2, H/2]], ref_from_tgt = (rot((0.2, 1, 0.1), 4°),
 /// (0.08, −0.02, 0.05)), uniform random alphas and colours.
-fn scene(n: usize, d: usize, size: u32, per_layer: bool) -> anyhow::Result<(Mhi, Camera)> {
+pub fn scene(n: usize, d: usize, size: u32, per_layer: bool) -> anyhow::Result<(Mhi, Camera)> {
     let s = f64::from(size);
     let k = Intrinsics::new(0.5 * s, 0.5 * s, 0.5 * s, 0.5 * s)?;
     let reference = Camera::new(k, RigidTransform::IDENTITY, size, size)?;
@@ -161,6 +170,22 @@ fn run_peer_render(
     Ok((ms, v["torch"].as_str().unwrap_or("?").to_string()))
 }
 
+/// The bench scene with any normal set and shared colour.
+pub fn scene_with(normals: NormalSet, d: usize, size: u32) -> anyhow::Result<(Mhi, Camera)> {
+    let (base, target) = scene(1, 1, size, false)?;
+    let n = normals.len();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+    let alpha = (0..n * d * (size * size) as usize)
+        .map(|_| rng.random::<f32>())
+        .collect();
+    let depths = depths_linear_in_disparity(1.0, 100.0, d)?;
+    let color = base.color().clone();
+    Ok((
+        Mhi::new(normals, depths, *base.reference(), color, alpha)?,
+        target,
+    ))
+}
+
 /// Read bandwidth in bytes/s: a parallel sum over 512 MiB, best of three.
 fn read_bandwidth() -> f64 {
     let v = vec![1.0_f32; 128 << 20];
@@ -181,6 +206,13 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
     }
     if let Some(other) = &a.compare_backend {
         let v = crate::step::backend_agreement(&a.data, other)?;
+        if let Some(p) = &a.json {
+            mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
+        }
+        return Ok(());
+    }
+    if a.scaling {
+        let v = crate::scaling::scaling(&a.scaling_out, a.runs)?;
         if let Some(p) = &a.json {
             mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
         }

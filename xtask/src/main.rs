@@ -9,6 +9,7 @@ mod metrics;
 mod ops;
 mod progress;
 mod render;
+mod scaling;
 mod stability;
 mod step;
 mod train;

@@ -4,7 +4,9 @@
 # the sequences held out of training; never re10k-3, never herzjesus-p8), N = 5, D = 32,
 # 8 triplets per sequence.
 # Usage: bash xtask/scripts/tune_sweep.sh [SHARED_DATA_DIR] [OUT_DIR]
-#   WINDOWS="2 4 6 8" TEMPERATURES="0.0025 0.005 0.01 0.02 0.04" choose the grid.
+#   WINDOWS="2 4 6 8" TEMPERATURES="0.0025 0.005 0.01 0.02 0.04" choose the grid;
+#   XTASK=/path/to/xtask runs a built binary instead of `cargo xtask` (so that editing the
+#   sources meanwhile cannot change what runs).
 # Prints one line per configuration and appends to OUT_DIR/tune_sweep.csv (configurations
 # already there are skipped, so the grid can be widened and the script run again).
 set -euo pipefail
@@ -19,7 +21,7 @@ for r in $windows; do
   for t in $temperatures; do
     if grep -q "^$r,$t," "$csv"; then continue; fi
     d="$out/w${r}_t${t}"
-    cargo xtask eval --data "$data/llff-6" --data "$data/strecha-2" --split train \
+    ${XTASK:-cargo xtask} eval --data "$data/llff-6" --data "$data/strecha-2" --split train \
       --sequences llff-6/room,strecha-2/entry-p10 --per-sequence 8 --methods sweep \
       --sweep-grid 5x32 --sweep-window "$r" --sweep-temperature "$t" --samples 0 \
       --orbit-frames 0 --out "$d" --overwrite > "$d.log" 2>&1 || { cat "$d.log"; exit 1; }

@@ -129,6 +129,10 @@ pub fn demo(a: &DemoArgs) -> anyhow::Result<()> {
         "--overwrite".into(),
         "--per-sequence".into(),
         a.per_sequence.to_string(),
+        // Twice the training size: the CPU-sized models are trained at 64 x 64, the report is
+        // read at 128 x 128 (the synthetic frames are 256 x 256; `eval` alone defaults to them).
+        "--size".into(),
+        "128x128".into(),
     ];
     if let Some(c) = &a.cache {
         args.extend(["--cache".into(), s(c)]);

@@ -1222,3 +1222,38 @@ fn machine() -> String {
         })
         .unwrap_or_else(|| std::env::consts::ARCH.to_string())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn evaluation_size_keeps_the_aspect_ratio_on_a_short_side() {
+        assert_eq!(size_for((640, 360), 256), (448, 256));
+        assert_eq!(size_for((768, 512), 256), (384, 256));
+        assert_eq!(size_for((504, 378), 256), (336, 256));
+        assert_eq!(size_for((256, 256), 256), (256, 256));
+        assert_eq!(size_for((360, 640), 256), (256, 448));
+        assert_eq!(size_for((10_000, 10), 32), (32_000, 32));
+    }
+
+    #[test]
+    fn comparisons_are_drawn_only_between_configurations_present() {
+        let c = |m: &str, n, d| (m.to_string(), n, d);
+        let cfgs = vec![
+            c("learned", 5, 8),
+            c("soft", 5, 8),
+            c("mpi", 1, 8),
+            c("sweep", 1, 32),
+            c("sweep", 5, 32),
+            c("nearest", 0, 0),
+        ];
+        let p = comparison_pairs(&cfgs);
+        assert!(p.contains(&(c("learned", 5, 8), c("soft", 5, 8))));
+        assert!(p.contains(&(c("learned", 5, 8), c("sweep", 5, 32))));
+        assert!(p.contains(&(c("learned", 5, 8), c("mpi", 1, 8))));
+        assert!(p.contains(&(c("sweep", 5, 32), c("sweep", 1, 32))));
+        assert!(p.contains(&(c("sweep", 5, 32), c("nearest", 0, 0))));
+        assert!(p.iter().all(|(a, b)| cfgs.contains(a) && cfgs.contains(b)));
+    }
+}

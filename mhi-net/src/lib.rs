@@ -25,7 +25,9 @@ pub mod pickle;
 mod train;
 
 pub use model::{Model, cost_volume};
-pub use nets::{BlendNet, BlendNetConfig, Stage1, Stage1Config, UNet3d, UNet3dConfig};
+pub use nets::{
+    BlendNet, BlendNetConfig, Stage1, Stage1Config, UNet3d, UNet3dConfig, conv3d_planes_as_2d,
+};
 pub use train::{
     CSV_HEADER, EvalScores, GRAD_CLIP_NORM, Sample, StepReport, StepTimes, TrainConfig, Trainer,
     VAL_CSV_HEADER, init_models,

@@ -29,6 +29,52 @@ pub struct UNet3dConfig {
     pub dilations: Vec<usize>,
 }
 
+/// A 3 × k × k convolution of `[B, C, D, H, W]` with zero padding 1 on the plane axis, and
+/// stride, dilation and padding only in the image axes, computed as one 2D convolution over the
+/// `B·D` planes whose input stacks each plane with its two neighbours (`3C` channels). The
+/// same sums as `conv3d`, through burn's 2D kernel.
+///
+/// # Shapes
+/// `x [B, C, D, H, W]`, `weight [Cout, C, 3, k, k]`, `bias [Cout]` →
+/// `[B, Cout, D, H', W']`
+pub fn conv3d_planes_as_2d(
+    x: Tensor<5>,
+    weight: Tensor<5>,
+    bias: Option<Tensor<1>>,
+    stride: usize,
+    dilation: usize,
+    padding: usize,
+) -> Tensor<5> {
+    use burn::tensor::module::conv2d;
+    use burn::tensor::ops::ConvOptions;
+    let [b, c, d, h, w] = x.dims();
+    let [cout, _, kd, kh, kw] = weight.dims();
+    debug_assert_eq!(kd, 3, "three planes per kernel");
+    let zeros = Tensor::zeros([b, c, 1, h, w], &x.device());
+    let padded = Tensor::cat(vec![zeros.clone(), x, zeros], 2);
+    // Channel k·C + c of plane z is channel c of plane z + k − 1.
+    let stacked = Tensor::cat((0..3).map(|k| padded.clone().narrow(2, k, d)).collect(), 1);
+    let planes = stacked
+        .permute([0, 2, 1, 3, 4])
+        .reshape([b * d, 3 * c, h, w]);
+    let w2 = weight
+        .permute([0, 2, 1, 3, 4])
+        .reshape([cout, 3 * c, kh, kw]);
+    let y = conv2d(
+        planes,
+        w2,
+        bias,
+        ConvOptions::new(
+            [stride, stride],
+            [padding, padding],
+            [dilation, dilation],
+            1,
+        ),
+    );
+    let [_, _, ho, wo] = y.dims();
+    y.reshape([b, d, cout, ho, wo]).permute([0, 2, 1, 3, 4])
+}
+
 /// Convolution, layer normalisation over channels, ReLU.
 #[derive(Module, Debug)]
 pub struct Block3d {
@@ -288,5 +334,40 @@ impl BlendNet {
             x = dec.forward(Tensor::cat(vec![up.forward(x), skip], 1));
         }
         softmax(self.head.forward(x), 1)
+    }
+}
+
+#[cfg(test)]
+mod plane_conv_tests {
+    use super::*;
+    use burn::tensor::Distribution;
+    use burn::tensor::module::conv3d;
+    use burn::tensor::ops::ConvOptions;
+
+    #[test]
+    fn planes_as_2d_equals_conv3d() {
+        let device = Device::flex();
+        for (stride, dilation) in [(1, 1), (2, 1), (1, 2), (1, 4)] {
+            let x: Tensor<5> =
+                Tensor::random([2, 3, 4, 8, 8], Distribution::Normal(0.0, 1.0), &device);
+            let w: Tensor<5> =
+                Tensor::random([5, 3, 3, 3, 3], Distribution::Normal(0.0, 1.0), &device);
+            let b: Tensor<1> = Tensor::random([5], Distribution::Normal(0.0, 1.0), &device);
+            let reference = conv3d(
+                x.clone(),
+                w.clone(),
+                Some(b.clone()),
+                ConvOptions::new(
+                    [1, stride, stride],
+                    [1, dilation, dilation],
+                    [1, dilation, dilation],
+                    1,
+                ),
+            );
+            let ours = conv3d_planes_as_2d(x, w, Some(b), stride, dilation, dilation);
+            assert_eq!(ours.dims(), reference.dims());
+            let diff: f32 = (ours - reference).abs().max().into_scalar();
+            assert!(diff < 1e-4, "stride {stride} dilation {dilation}: {diff}");
+        }
     }
 }

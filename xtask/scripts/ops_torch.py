@@ -30,7 +30,7 @@ def make(op):
     kind, shape, cout = op["kind"], op["input"], op["cout"]
     s, d = op["stride"], op["dilation"]
     x = (torch.rand(*shape) * 2 - 1).requires_grad_()
-    if kind == "conv3d":
+    if kind in ("conv3d", "conv3d_as_2d"):
         w = (torch.rand(cout, shape[1], 3, 3, 3) * 2 - 1).requires_grad_()
         return lambda: F.conv3d(x, w, None, (1, s, s), (1, d, d), (1, d, d)).mean(), [x, w]
     if kind == "convT3d":

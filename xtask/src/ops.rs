@@ -17,7 +17,8 @@ use crate::bench::median_ms;
 pub struct OpSpec {
     /// Key shared with the PyTorch script.
     pub name: String,
-    /// `conv3d`, `convT3d`, `layernorm5`, `conv2d`, `grid_sample`.
+    /// `conv3d`, `conv3d_as_2d` (the same sums through a 2D kernel; PyTorch runs conv3d),
+    /// `convT3d`, `layernorm5`, `conv2d`, `grid_sample`.
     pub kind: &'static str,
     /// Input shape.
     pub input: Vec<usize>,
@@ -195,6 +196,13 @@ fn op_fn(op: &OpSpec, device: &Device, grad: bool) -> Box<dyn Fn() -> Tensor<1>>
             let w = g(rand([op.cout, op.input[1], 3, 3, 3], device));
             let o = ConvOptions::new([1, s, s], [1, dl, dl], [1, dl, dl], 1);
             Box::new(move || conv3d(x.clone(), w.clone(), None, o.clone()).mean())
+        }
+        "conv3d_as_2d" => {
+            let x = g(rand(dims5(&op.input), device));
+            let w = g(rand([op.cout, op.input[1], 3, 3, 3], device));
+            Box::new(move || {
+                mhi_net::conv3d_planes_as_2d(x.clone(), w.clone(), None, s, dl, dl).mean()
+            })
         }
         "convT3d" => {
             let x = g(rand(dims5(&op.input), device));

@@ -122,6 +122,8 @@ pub struct Row {
     pub lpips_covered_ci: Option<[f64; 2]>,
     /// Mean fraction of covered pixels.
     pub covered_fraction: f64,
+    /// Views with at least one covered pixel: the covered means average over these.
+    pub covered_count: usize,
     /// Mean milliseconds per novel view (sum of the split below).
     pub ms_per_view: f64,
     /// Mean time split.
@@ -239,8 +241,8 @@ pub fn aggregate(ms: &[Measurement], boot: &Bootstrap) -> Vec<Row> {
             let n = v.len() as f64;
             let mean = |f: &dyn Fn(&Measurement) -> f64| v.iter().map(|m| f(m)).sum::<f64>() / n;
             // A metric's mean and interval over the views that have it; `None` unless every
-            // view has it (LPIPS) or at least one does (covered metrics, absent where nothing
-            // is covered).
+            // view has it (whole-image LPIPS, absent without weights) or at least one does
+            // (covered metrics, absent where nothing is covered).
             let stat = |metric: Metric, need_all: bool| -> Option<(f64, [f64; 2])> {
                 let vals: Vec<f64> = v.iter().filter_map(|m| metric.of(m)).collect();
                 if vals.is_empty() || (need_all && vals.len() < v.len()) {
@@ -259,7 +261,7 @@ pub fn aggregate(ms: &[Measurement], boot: &Bootstrap) -> Vec<Row> {
             let lpips = stat(Metric::Lpips, true);
             let pc = stat(Metric::PsnrCovered, false);
             let sc = stat(Metric::SsimCovered, false);
-            let lc = stat(Metric::LpipsCovered, true);
+            let lc = stat(Metric::LpipsCovered, false);
             let times = Times {
                 volume_ms: mean(&|m| m.times.volume_ms),
                 network_ms: mean(&|m| m.times.network_ms),
@@ -286,6 +288,7 @@ pub fn aggregate(ms: &[Measurement], boot: &Bootstrap) -> Vec<Row> {
                 lpips_covered: lc.map(|x| x.0),
                 lpips_covered_ci: lc.map(|x| x.1),
                 covered_fraction: mean(&|m| m.covered_fraction),
+                covered_count: v.iter().filter(|m| m.psnr_covered.is_some()).count(),
                 ms_per_view: times.total(),
                 times,
             }
@@ -531,7 +534,7 @@ pub fn markdown_tables(rows: &[Row], comparisons: &[Comparison]) -> String {
     }
     let _ = writeln!(
         s,
-        "Covered fraction of the target's pixels (mean over triplets):\n"
+        "Covered fraction of the target's pixels (mean over triplets), and the views with any covered pixel (the covered means average over those):\n"
     );
     let mut head = String::from("|");
     let mut sep = String::from("|");
@@ -541,7 +544,11 @@ pub fn markdown_tables(rows: &[Row], comparisons: &[Comparison]) -> String {
             let unit = if b == "all" { "" } else { "°" };
             let _ = write!(head, " {b}{unit} |");
             sep.push_str("---:|");
-            let _ = write!(vals, " {:.3} |", r.covered_fraction);
+            let _ = write!(
+                vals,
+                " {:.3} ({} of {} views) |",
+                r.covered_fraction, r.covered_count, r.count
+            );
         }
     }
     let _ = writeln!(s, "{head}\n{sep}\n{vals}\n");

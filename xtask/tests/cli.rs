@@ -24,7 +24,12 @@ fn fails(args: &[&str]) -> String {
         String::from_utf8_lossy(&out.stdout)
     );
     assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
-    assert!(err.starts_with("error: "), "{args:?}: {err}");
+    // Warnings about the data (frames left out, …) may come first; the error is one line that
+    // starts with `error: `.
+    assert!(
+        err.lines().any(|l| l.starts_with("error: ")),
+        "{args:?}: {err}"
+    );
     err
 }
 
@@ -538,6 +543,102 @@ fn render_names_the_bad_camera_row_and_refuses_missing_rows() {
     v[6] = "9".into();
     let err = fails(&v.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(err.contains("--src-row 9"), "{err}");
+    // An orbit radius that is not a number, or absurdly far: refused before anything renders.
+    for r in ["nan", "1e30", "0"] {
+        let v = base(
+            cams.to_str().unwrap(),
+            &["--overwrite", "--orbit-radius", r],
+        );
+        let err = fails(&v.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(err.contains("--orbit-radius"), "{r}: {err}");
+    }
+    // The same photo twice.
+    let mut v = base(cams.to_str().unwrap(), &["--overwrite"]);
+    v[4] = a.into();
+    let err = fails(&v.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(err.contains("same file"), "{err}");
+}
+
+/// `eval` refuses what it cannot score honestly: an unknown method (listing the choices), a
+/// size too small for its metrics, an index whose target is its reference, an index reused
+/// after frames were deleted; and a directory named like a frame is not taken for one.
+#[test]
+fn eval_refuses_unknown_methods_tiny_sizes_and_stale_or_degenerate_indices() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let data = root.to_str().unwrap();
+    let out = d.path().join("report");
+    let o_ = out.to_str().unwrap();
+    let base = |extra: &[&str]| -> Vec<String> {
+        let mut v: Vec<String> = [
+            "eval",
+            "--data",
+            data,
+            "--methods",
+            "sweep,nearest",
+            "--sweep-grid",
+            "1x2",
+            "--size",
+            "32x32",
+            "--orbit-frames",
+            "0",
+            "--samples",
+            "0",
+            "--out",
+            o_,
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        v.extend(extra.iter().map(|s| s.to_string()));
+        v
+    };
+    fn refs(v: &[String]) -> Vec<&str> {
+        v.iter().map(String::as_str).collect()
+    }
+    let mut v = base(&[]);
+    v[4] = "sweep,bogus".into();
+    let err = fails(&refs(&v));
+    assert!(err.contains("bogus") && err.contains("nearest"), "{err}");
+    let mut v = base(&[]);
+    v[8] = "4x4".into();
+    let err = fails(&refs(&v));
+    assert!(err.contains("--size 4x4") && err.contains("32"), "{err}");
+    assert!(!out.exists(), "a refused eval leaves no output folder");
+    // An index with a degenerate triplet, then one whose frames changed.
+    let index = d.path().join("index.json");
+    let o = xtask(&[
+        "triplets",
+        "--data",
+        data,
+        "--per-sequence",
+        "2",
+        "--save",
+        index.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let good = std::fs::read_to_string(&index).unwrap();
+    let mut j: serde_json::Value = serde_json::from_str(&good).unwrap();
+    let r = j["triplets"][0]["reference"].clone();
+    j["triplets"][0]["target"] = r;
+    let bad = d.path().join("bad.json");
+    std::fs::write(&bad, j.to_string()).unwrap();
+    let err = fails(&refs(&base(&["--index", bad.to_str().unwrap()])));
+    assert!(err.contains("uses one frame twice"), "{err}");
+    let seq = root.join("test/scene_00001");
+    let mut frames: Vec<PathBuf> = std::fs::read_dir(&seq)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    frames.sort();
+    std::fs::remove_file(&frames[0]).unwrap();
+    // A directory named like the deleted frame is not a frame either.
+    std::fs::create_dir(&frames[0]).unwrap();
+    let err = fails(&refs(&base(&["--index", index.to_str().unwrap()])));
+    assert!(
+        err.contains("frames were added or deleted") || err.contains("does not have"),
+        "{err}"
+    );
 }
 
 /// Training on a mix of two roots: the weights and the held-out sequence are recorded in

@@ -165,7 +165,9 @@ impl Dataset {
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_default();
             let file = CameraFile::read(&cam_path)?;
-            let images = list_frames(&dir.join(&name), &name)?;
+            // The frame folder is the camera file's path without `.txt`, taken as the OS gives
+            // it (a name that is not UTF-8 still finds its folder).
+            let images = list_frames(&cam_path.with_extension(""), &name)?;
             let total = file.rows.len();
             let frames: Vec<Frame> = file
                 .rows

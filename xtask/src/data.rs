@@ -187,8 +187,9 @@ pub fn triplets(a: &TripletsArgs) -> anyhow::Result<()> {
     );
     if ds.sequences.is_empty() {
         bail!(
-            "{}: no usable sequence (each needs at least 3 frames with images)",
-            ds.dir.display()
+            "{}: no usable sequence: each needs at least 3 frames with images, and {} camera files were skipped (the warnings above say which and why)",
+            ds.dir.display(),
+            ds.skipped_sequences
         );
     }
     let first = &ds.sequences[0].frames[0];

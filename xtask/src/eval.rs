@@ -384,7 +384,12 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         if ti == 0 {
             // Warm-up: the first view of every method pays for allocations and lazy
             // initialisation that a user rendering many views pays once.
-            ctx.run_methods(&rf, &sf, &tf, seq)?;
+            if ctx.run_methods(&rf, &sf, &tf, seq)?.is_empty() {
+                bail!(
+                    "none of --methods {:?} applies here: learned, soft, hard and avg need a --run with N > 1, mpi a --run with N = 1, oracle synthetic scenes",
+                    a.methods
+                );
+            }
             pb.inc(1);
         }
         let outputs = ctx.run_methods(&rf, &sf, &tf, seq)?;

@@ -812,3 +812,40 @@ fn absurd_sizes_and_degenerate_frames_are_refused_up_front() {
     let err = fails(&args);
     assert!(err.contains("three different frames"), "{err}");
 }
+
+/// An interrupted `synth` is named as such by `synth` and by every reader; a far plane
+/// absurdly far for the baseline is named as that, not as a zero baseline; a method list that
+/// applies to nothing is refused rather than reported as empty tables.
+#[test]
+fn interrupted_sets_absurd_far_planes_and_methods_that_apply_to_nothing() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let data = root.to_str().unwrap();
+    let out = d.path().join("o");
+    let mut args = sweep_args(data, out.to_str().unwrap());
+    args.extend(["--far", "1e30"]);
+    let err = fails(&args);
+    assert!(err.contains("farthest plane depth"), "{err}");
+    let err = fails(&[
+        "eval",
+        "--data",
+        data,
+        "--methods",
+        "learned",
+        "--size",
+        "32x32",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(err.contains("none of --methods"), "{err}");
+    std::fs::write(root.join(mhi_data::INCOMPLETE_MARKER), "x").unwrap();
+    let err = fails(&["triplets", "--data", data]);
+    assert!(err.contains("incomplete dataset"), "{err}");
+    let err = fails(&[
+        "synth", "--out", data, "--scenes", "2", "--frames", "3", "--size", "16x16",
+    ]);
+    assert!(
+        err.contains("incomplete synthetic set") && err.contains("--overwrite"),
+        "{err}"
+    );
+}

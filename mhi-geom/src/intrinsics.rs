@@ -1,4 +1,4 @@
-//! Pinhole intrinsics in pixels, following the continuous pixel frame of DESIGN.md.
+//! Pinhole intrinsics in pixels, following the continuous pixel frame of docs/METHOD.md.
 
 use glam::{DMat3, DVec2, DVec3};
 use serde::{Deserialize, Serialize};

@@ -1,6 +1,6 @@
 //! Geometry of Multiple Homography Image (MHI) view synthesis, in f64 on plain glam types.
 //!
-//! Conventions (binding across the workspace; see `DESIGN.md` of the project):
+//! Conventions (binding across the workspace; see `docs/METHOD.md` in the repository):
 //! - cameras are OpenCV-style (x right, y down, z forward) and poses are world-to-camera
 //!   [`RigidTransform`]s named by target and source (`cam_from_world`, `ref_from_tgt`);
 //! - a [`Plane`] is `{X : n·X = d}` in the reference camera frame, `n` unit with `n_z > 0`, `d > 0`;

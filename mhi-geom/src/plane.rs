@@ -97,7 +97,7 @@ pub struct NormalSet {
 }
 
 impl NormalSet {
-    /// The paper's five normals n1 … n5 (DESIGN.md).
+    /// The paper's five normals n1 … n5 (docs/METHOD.md).
     pub fn paper() -> Self {
         let h2 = std::f64::consts::FRAC_1_SQRT_2;
         let h3 = 3.0_f64.sqrt() / 2.0;

@@ -109,7 +109,7 @@ impl RigidTransform {
     }
 
     /// The relative pose `ref_from_tgt = ref_from_world ∘ (tgt_from_world)⁻¹` of two
-    /// world-to-camera poses, so that `X_ref = R · X_tgt + t` as in the homography of DESIGN.md.
+    /// world-to-camera poses, so that `X_ref = R · X_tgt + t` as in the homography of docs/METHOD.md.
     pub fn relative(ref_from_world: &Self, tgt_from_world: &Self) -> Self {
         ref_from_world.compose(&tgt_from_world.inverse())
     }

@@ -5,7 +5,7 @@ use glam::{DMat3, DVec3};
 /// The rotation angle of `r` in degrees, in `[0, 180]`.
 ///
 /// Uses `θ = atan2(‖vee(R − Rᵀ)‖ / 2, (tr R − 1) / 2)` rather than `arccos((tr R − 1)/2)`, which
-/// loses half of its digits near 0° and near 180° (DESIGN.md, "Known numerical traps"). A matrix
+/// loses half of its digits near 0° and near 180° (docs/METHOD.md, "Numerical traps"). A matrix
 /// with NaN entries yields NaN only if given one; validate poses with
 /// [`crate::RigidTransform::new`] first.
 pub fn rotation_angle_deg(r: &DMat3) -> f64 {

@@ -18,7 +18,7 @@ pub enum LayerColor {
 /// An MHI: for each normal `i` and each depth `j` (far first), an alpha map on the reference
 /// image grid, plus the layers' colour.
 ///
-/// The farthest layer of each normal is treated as opaque when compositing (DESIGN.md), so its
+/// The farthest layer of each normal is treated as opaque when compositing (docs/METHOD.md), so its
 /// stored alpha is ignored.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Mhi {

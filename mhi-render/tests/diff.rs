@@ -1,5 +1,5 @@
 //! The differentiable burn path agrees with the CPU renderer and keeps gradients finite on the
-//! extreme cases of DESIGN.md.
+//! extreme cases of docs/METHOD.md ("Numerical traps").
 
 use burn::tensor::{Device, Tensor, TensorData};
 use glam::{DMat3, DVec3};

@@ -161,6 +161,15 @@ pub const PRINCIPAL_POINT_RANGE: std::ops::RangeInclusive<f64> = -0.5..=1.5;
 /// span a few units; 1e6 leaves room for any scale a capture uses while catching overflow).
 pub const MAX_TRANSLATION: f64 = 1e6;
 
+/// A number as a person reads it: plain when moderate, in exponent form when huge or tiny.
+fn num(x: f64) -> String {
+    if x != 0.0 && !(1e-3..1e6).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
 /// Reject cameras that parse but cannot be right, with the column and the reason.
 fn check_plausible(v: &[f64; COLUMNS - 1], path: &Path, n: usize) -> Result<()> {
     for (k, name) in [(0, "fx"), (1, "fy")] {
@@ -171,7 +180,7 @@ fn check_plausible(v: &[f64; COLUMNS - 1], path: &Path, n: usize) -> Result<()> 
                 format!(
                     "column {}: normalised focal length {name} = {} is outside [{}, {}] (a field of view between 1.1° and 170°); intrinsics are divided by the image width (fx, cx) and height (fy, cy)",
                     k + 2,
-                    v[k],
+                    num(v[k]),
                     FOCAL_RANGE.start(),
                     FOCAL_RANGE.end()
                 ),
@@ -186,7 +195,7 @@ fn check_plausible(v: &[f64; COLUMNS - 1], path: &Path, n: usize) -> Result<()> 
                 format!(
                     "column {}: normalised principal point {name} = {} lies more than half an image outside the image (expected within [{}, {}], 0.5 is the centre)",
                     k + 2,
-                    v[k],
+                    num(v[k]),
                     PRINCIPAL_POINT_RANGE.start(),
                     PRINCIPAL_POINT_RANGE.end()
                 ),
@@ -201,7 +210,7 @@ fn check_plausible(v: &[f64; COLUMNS - 1], path: &Path, n: usize) -> Result<()> 
                 format!(
                     "column {}: distortion {name} = {} is not zero; this project models undistorted pinhole cameras only (RealEstate10K's are), so undistort the frames first",
                     k + 2,
-                    v[k]
+                    num(v[k])
                 ),
             ));
         }

@@ -200,3 +200,30 @@ fn an_interrupted_generation_is_refused() {
         "{e}"
     );
 }
+
+/// A sequence whose name is not UTF-8 still finds its frames (the folder is joined as the OS
+/// gives it, not through a lossy string).
+#[cfg(unix)]
+#[test]
+fn a_sequence_name_that_is_not_utf8_finds_its_frames() {
+    use std::os::unix::ffi::OsStrExt;
+    let d = tempfile::tempdir().unwrap();
+    tiny_dataset(d.path());
+    let train = d.path().join("train");
+    let odd = std::ffi::OsStr::from_bytes(b"scene_\xff");
+    std::fs::rename(
+        train.join("scene_00000.txt"),
+        train.join(odd).with_extension("txt"),
+    )
+    .unwrap();
+    std::fs::rename(train.join("scene_00000"), train.join(odd)).unwrap();
+    let ds = Dataset::open(d.path(), "train", 3).unwrap();
+    let seq = ds
+        .sequences
+        .iter()
+        .find(|s| {
+            s.name.starts_with("scene_") && s.name != "scene_00001" && s.name != "scene_00002"
+        })
+        .expect("the renamed sequence is kept");
+    assert_eq!(seq.frames.len(), 5, "{:?}", ds.warnings);
+}

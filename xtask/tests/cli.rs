@@ -118,6 +118,31 @@ fn corrupt_camera(root: &Path, edit: impl FnOnce(&mut Vec<String>)) {
     std::fs::write(&cam, lines.join("\n") + "\n").unwrap();
 }
 
+/// Cameras that parse but cannot be right (a principal point 50 images away, a focal length of
+/// 1e30, a translation of 1e30, a distortion this project ignores) are refused with the file,
+/// line and column, instead of rendering black with exit 0.
+#[test]
+fn implausible_cameras_name_file_line_and_column() {
+    for (col, value, expect) in [
+        (3, "50", "column 4: normalised principal point cx = 50"),
+        (1, "1e30", "column 2: normalised focal length fx = 1e30"),
+        (10, "1e30", "column 11: translation t1"),
+        (5, "0.1", "column 6: distortion k1 = 0.1"),
+    ] {
+        let d = tempfile::tempdir().unwrap();
+        let root = dataset(d.path());
+        corrupt_camera(&root, |t| t[col] = value.into());
+        let err = fails(&sweep_args(
+            root.to_str().unwrap(),
+            d.path().join("o").to_str().unwrap(),
+        ));
+        assert!(
+            err.contains("scene_00001.txt:3:") && err.contains(expect),
+            "{err}"
+        );
+    }
+}
+
 #[test]
 fn camera_file_with_nan() {
     let d = tempfile::tempdir().unwrap();

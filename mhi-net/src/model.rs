@@ -44,6 +44,16 @@ impl Model {
             })?)
             .map_err(|e| Error::Checkpoint(format!("{}: {e}", latest_path.display())))?;
         let (stage1, blend) = load_networks(&config, &run.join(&latest.dir), &device)?;
+        Self::with_networks(config, stage1, blend, device, latest.step)
+    }
+
+    fn with_networks(
+        config: TrainConfig,
+        stage1: Stage1,
+        blend: BlendNet,
+        device: Device,
+        step: usize,
+    ) -> crate::Result<Self> {
         let normals = config.normal_set()?;
         let depths = depths_linear_in_disparity(config.near, config.far, config.planes)?;
         Ok(Self {
@@ -53,7 +63,7 @@ impl Model {
             stage1,
             blend,
             device,
-            step: latest.step,
+            step,
         })
     }
 
@@ -61,17 +71,7 @@ impl Model {
     /// from. Costs exactly what a trained model costs, so benchmarks of inference use it.
     pub fn untrained(config: TrainConfig, device: Device) -> crate::Result<Self> {
         let (stage1, blend) = crate::train::init_models(&config, &device);
-        let normals = config.normal_set()?;
-        let depths = depths_linear_in_disparity(config.near, config.far, config.planes)?;
-        Ok(Self {
-            config,
-            normals,
-            depths,
-            stage1,
-            blend,
-            device,
-            step: 0,
-        })
+        Self::with_networks(config, stage1, blend, device, 0)
     }
 
     /// The run's configuration.

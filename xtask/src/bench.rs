@@ -146,24 +146,7 @@ fn run_peer_render(
     if shared {
         cmd.arg("--shared-colour");
     }
-    let out = cmd
-        .output()
-        .with_context(|| format!("cannot run {} {}", a.python, peer.display()))?;
-    if !out.status.success() {
-        bail!(
-            "peer renderer failed ({}): {}",
-            out.status,
-            String::from_utf8_lossy(&out.stderr).trim()
-        );
-    }
-    let text = String::from_utf8_lossy(&out.stdout);
-    let line = text
-        .lines()
-        .rev()
-        .find(|l| l.trim_start().starts_with('{'))
-        .context("peer printed no JSON line")?;
-    let v: serde_json::Value =
-        serde_json::from_str(line).with_context(|| format!("peer JSON {line:?}"))?;
+    let v = run_peer_json(&mut cmd, peer)?;
     let ms = v["median_ms"]
         .as_f64()
         .context("peer JSON lacks median_ms")?;
@@ -184,6 +167,32 @@ pub fn scene_with(normals: NormalSet, d: usize, size: u32) -> anyhow::Result<(Mh
         Mhi::new(normals, depths, *base.reference(), color, alpha)?,
         target,
     ))
+}
+
+/// Run a Python peer (`cmd` names the interpreter and `script` with its arguments) and parse
+/// the last line of its standard output that is a JSON object.
+pub fn run_peer_json(
+    cmd: &mut Command,
+    script: &std::path::Path,
+) -> anyhow::Result<serde_json::Value> {
+    let out = cmd
+        .output()
+        .with_context(|| format!("cannot start the peer {}", script.display()))?;
+    if !out.status.success() {
+        bail!(
+            "the peer {} failed ({}): {} (it needs `pip install torch torchvision`)",
+            script.display(),
+            out.status,
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    }
+    let text = String::from_utf8_lossy(&out.stdout);
+    let line = text
+        .lines()
+        .rev()
+        .find(|l| l.trim_start().starts_with('{'))
+        .with_context(|| format!("the peer {} printed no JSON line", script.display()))?;
+    serde_json::from_str(line).with_context(|| format!("the peer's JSON {line:?}"))
 }
 
 /// Read bandwidth in bytes/s: a parallel sum over 512 MiB, best of three.

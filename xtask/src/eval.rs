@@ -607,6 +607,27 @@ fn with_uncovered_from(img: &Rgb32FImage, truth: &Rgb32FImage, covered: &[bool])
     o
 }
 
+/// A blended view of a trained run: the shared time split plus this blend's time since `t0`.
+fn blended(
+    method: &str,
+    normals: usize,
+    planes: usize,
+    image: Rgb32FImage,
+    base: Times,
+    t0: Instant,
+) -> Output {
+    Output {
+        method: method.into(),
+        normals,
+        planes,
+        image,
+        times: Times {
+            blend_ms: ms(t0),
+            ..base
+        },
+    }
+}
+
 /// What every method of one evaluation shares.
 struct Ctx<'a> {
     a: &'a EvalArgs,
@@ -707,17 +728,7 @@ impl Ctx<'_> {
                     BlendHeuristic::Soft,
                 );
                 let w = model.blend_weights(mni, &soft)?;
-                let image = combine(mni, &w);
-                out.push(Output {
-                    method: "learned".into(),
-                    normals: n,
-                    planes: d,
-                    image,
-                    times: Times {
-                        blend_ms: ms(t3),
-                        ..base
-                    },
-                });
+                out.push(blended("learned", n, d, combine(mni, &w), base, t3));
             }
             for (which, name, h) in heuristics {
                 if !self.wants(which) {
@@ -725,17 +736,7 @@ impl Ctx<'_> {
                 }
                 let t3 = Instant::now();
                 let w = heuristic_weights_for(model.normals(), &rf.camera, &tf.camera, h);
-                let image = combine(mni, &w);
-                out.push(Output {
-                    method: name.into(),
-                    normals: n,
-                    planes: d,
-                    image,
-                    times: Times {
-                        blend_ms: ms(t3),
-                        ..base
-                    },
-                });
+                out.push(blended(name, n, d, combine(mni, &w), base, t3));
             }
         }
         for &(n, d) in self.sweep_grid {

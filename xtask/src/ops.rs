@@ -5,7 +5,6 @@
 
 use std::path::Path;
 
-use anyhow::Context as _;
 use burn::tensor::module::{conv_transpose3d, conv2d, conv3d};
 use burn::tensor::ops::{ConvOptions, ConvTransposeOptions, GridSampleOptions};
 use burn::tensor::{Device, Distribution, Tensor};
@@ -308,32 +307,14 @@ pub fn ops(
             let spec_path = tmp.path().join("ops.json");
             std::fs::write(&spec_path, serde_json::to_vec(&specs)?)?;
             println!("running the PyTorch twin {} ...", script.display());
-            let out = std::process::Command::new(python)
-                .arg(script)
-                .arg(&spec_path)
-                .args([
-                    "--threads",
-                    &threads.to_string(),
-                    "--runs",
-                    &runs.to_string(),
-                ])
-                .output()
-                .with_context(|| format!("cannot start {python} {}", script.display()))?;
-            if !out.status.success() {
-                anyhow::bail!(
-                    "{} failed ({}): {} (it needs `pip install torch`)",
-                    script.display(),
-                    out.status,
-                    String::from_utf8_lossy(&out.stderr).trim()
-                );
-            }
-            let text = String::from_utf8_lossy(&out.stdout);
-            let line = text
-                .lines()
-                .rev()
-                .find(|l| l.starts_with('{'))
-                .context("the PyTorch twin printed no JSON line")?;
-            Some(serde_json::from_str(line)?)
+            let mut cmd = std::process::Command::new(python);
+            cmd.arg(script).arg(&spec_path).args([
+                "--threads",
+                &threads.to_string(),
+                "--runs",
+                &runs.to_string(),
+            ]);
+            Some(crate::bench::run_peer_json(&mut cmd, script)?)
         }
         None => None,
     };

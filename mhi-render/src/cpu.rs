@@ -24,32 +24,50 @@ pub enum Blend<'a> {
     Weights(&'a [f32]),
 }
 
-/// What may be left out of a render, and when a pixel may stop compositing.
+/// What a render may leave out, as one error budget: the largest change, in colour units
+/// (colours in [0, 1]), that everything left out may make to any pixel of the blended view.
+///
+/// The budget is split in three equal shares, each a bound that holds whatever the content:
+/// - **layers** — per normal, layers are skipped (faintest first) while the sum of their
+///   largest alphas stays within the share. Removing layers of alphas a_j from an
+///   over-composite changes it by at most Σ a_j (each removal changes it by a_j times a colour
+///   difference of at most 1), so the skipped mass is accumulated, not bounded per layer;
+/// - **normals** — normals are dropped (lightest first) while, at every target pixel, the sum of
+///   their blend weights stays within the share; renormalising the rest changes the blend by at
+///   most that sum;
+/// - **transmittance** — a pixel stops compositing once its remaining transmittance is within
+///   the share: what lies behind adds at most that much.
+///
+/// The farthest layer of each normal is never skipped, and at least one normal is kept.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Prune {
-    /// Skip layers whose alpha never exceeds this (0 keeps every layer).
-    pub alpha_threshold: f32,
-    /// Skip normals whose normalised blend weight never exceeds this over the target (0 keeps
-    /// every normal). The remaining weights are renormalised.
-    pub weight_threshold: f32,
-    /// Stop compositing a pixel once its remaining transmittance is below this (0 never stops).
-    pub transmittance_eps: f32,
+    /// The budget in colour units per pixel (0 renders exactly).
+    pub budget: f32,
 }
 
 impl Prune {
     /// Render everything exactly.
-    pub const NONE: Self = Self {
-        alpha_threshold: 0.0,
-        weight_threshold: 0.0,
-        transmittance_eps: 0.0,
-    };
-    /// The default plan: layers below 1/255, normals below 1e-3 of the weight, pixels once 1/255
-    /// of the light remains. Each bound changes a pixel by at most about its own size.
+    pub const NONE: Self = Self { budget: 0.0 };
+    /// The default plan: no pixel changes by more than one 8-bit level (1/255).
     pub const DEFAULT: Self = Self {
-        alpha_threshold: 1.0 / 255.0,
-        weight_threshold: 1e-3,
-        transmittance_eps: 1.0 / 255.0,
+        budget: 1.0 / 255.0,
     };
+
+    /// A plan with the given budget (colour units per pixel).
+    pub fn with_budget(budget: f32) -> Self {
+        Self {
+            budget: if budget.is_finite() {
+                budget.max(0.0)
+            } else {
+                0.0
+            },
+        }
+    }
+
+    /// The share of the budget each of the three kinds of leaving out may use.
+    pub fn share(&self) -> f32 {
+        self.budget / 3.0
+    }
 }
 
 impl Default for Prune {
@@ -80,16 +98,20 @@ impl Default for RenderOptions<'_> {
 }
 
 /// Counts of what a render did and skipped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct RenderStats {
     /// N · D.
     pub layers: usize,
     /// Layers whose plane the target camera is on or behind (masked).
     pub layers_invisible: usize,
-    /// Layers skipped by the alpha threshold.
+    /// Layers skipped within the budget's layer share.
     pub layers_pruned: usize,
-    /// Normals skipped by the weight threshold.
+    /// Normals skipped within the budget's normal share.
     pub normals_pruned: usize,
+    /// The bound the render guarantees: the largest change any pixel can see from what was
+    /// left out (skipped alpha mass of the worst normal + dropped blend weight of the worst
+    /// pixel + the transmittance at which compositing stops), at most the budget.
+    pub bound: f32,
 }
 
 /// The result of a render.
@@ -237,26 +259,34 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
         layers: n * d,
         ..RenderStats::default()
     };
-    // Normals to skip: their weight never matters.
+    let share = opts.prune.share();
+    // Normals to skip, lightest first, while the dropped weight stays within the share at
+    // every pixel.
     let mut active = vec![true; n];
-    if opts.prune.weight_threshold > 0.0 {
-        for (i, act) in active.iter_mut().enumerate() {
-            let max = weights[i * px..(i + 1) * px]
+    let mut dropped = vec![0.0_f32; px];
+    let mut dropped_max = 0.0_f32;
+    if share > 0.0 && n > 1 {
+        let max_of = |i: usize| {
+            weights[i * px..(i + 1) * px]
                 .iter()
-                .fold(0.0_f32, |m, v| m.max(*v));
-            if max < opts.prune.weight_threshold {
-                *act = false;
+                .fold(0.0_f32, |m, v| m.max(*v))
+        };
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by(|a, b| max_of(*a).total_cmp(&max_of(*b)));
+        for &i in &order[..n - 1] {
+            let w = &weights[i * px..(i + 1) * px];
+            let new_max = dropped
+                .iter()
+                .zip(w)
+                .fold(0.0_f32, |m, (d, v)| m.max(d + v));
+            if new_max > share {
+                break;
             }
-        }
-        if active.iter().all(|a| !a) {
-            // Keep the strongest normal rather than render nothing.
-            let best = (0..n)
-                .max_by(|a, b| {
-                    let s = |i: usize| weights[i * px..(i + 1) * px].iter().sum::<f32>();
-                    s(*a).total_cmp(&s(*b))
-                })
-                .unwrap_or(0);
-            active[best] = true;
+            active[i] = false;
+            for (d, v) in dropped.iter_mut().zip(w) {
+                *d += v;
+            }
+            dropped_max = new_max;
         }
         stats.normals_pruned = active.iter().filter(|a| !**a).count();
         if stats.normals_pruned > 0 {
@@ -278,20 +308,38 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
     let hs = layer_homographies(mhi, target);
     stats.layers_invisible = hs.iter().filter(|h| h.is_none()).count();
     // Layers to composite, per normal, front (near) to back; the far layer is always kept.
+    // Faintest first, layers are skipped while their summed largest alpha fits the share.
     let mut plan: Vec<Vec<(usize, [f32; 9], bool)>> = Vec::with_capacity(n);
+    let mut skipped_mass_max = 0.0_f32;
     for i in 0..n {
+        let mut skip = vec![false; d];
+        if share > 0.0 {
+            let mut order: Vec<usize> = (1..d).filter(|&j| hs[i * d + j].is_some()).collect();
+            order.sort_by(|a, b| {
+                mhi.layer_max_alpha(i, *a)
+                    .total_cmp(&mhi.layer_max_alpha(i, *b))
+            });
+            let mut mass = 0.0_f32;
+            for j in order {
+                let a = mhi.layer_max_alpha(i, j);
+                if mass + a > share {
+                    break;
+                }
+                mass += a;
+                skip[j] = true;
+            }
+            if active[i] {
+                skipped_mass_max = skipped_mass_max.max(mass);
+            }
+        }
         let mut layers = Vec::new();
         for j in (0..d).rev() {
             let Some(h) = hs[i * d + j] else { continue };
-            let far = j == 0;
-            if !far
-                && mhi.layer_max_alpha(i, j) <= opts.prune.alpha_threshold
-                && opts.prune.alpha_threshold > 0.0
-            {
+            if skip[j] {
                 stats.layers_pruned += 1;
                 continue;
             }
-            layers.push((j, h, far));
+            layers.push((j, h, j == 0));
         }
         plan.push(layers);
     }
@@ -307,7 +355,8 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
         LayerColor::Shared(_) => Vec::new(),
         LayerColor::PerLayer(v) => v.iter().map(texels).collect(),
     };
-    let eps = opts.prune.transmittance_eps;
+    let eps = share;
+    stats.bound = skipped_mass_max + dropped_max + eps;
     let keep = opts.keep_multi_normal;
     // Each row: blended RGB (W·3) and, if kept, the N multi-normal rows (N·W·3).
     let rows: Vec<(Vec<f32>, Vec<f32>)> = (0..th)

@@ -296,3 +296,95 @@ proptest! {
         }
     }
 }
+
+/// One error budget for everything left out: an MHI whose 31 non-far layers are each fainter
+/// than the budget's layer share, but far brighter together, with colours that differ as much
+/// as they can (black and white), and two normals of negligible blend weight. Pruned against
+/// exact, no pixel may move by more than the bound the render reports, and that bound stays
+/// within the budget. A plan that bounded each layer on its own would skip all 31 layers and
+/// move pixels by about 31 × the share: this test fails for it.
+#[test]
+fn the_error_budget_bounds_the_total_change_of_every_pixel() {
+    let (n, d, w, h) = (5, 32, 24, 20);
+    let base = random_mhi(n, d, w, h, true, 9);
+    let px = (w * h) as usize;
+    let prune = Prune::DEFAULT;
+    let share = prune.share();
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let mut alpha = vec![0.0_f32; n * d * px];
+    for i in 0..n {
+        for j in 0..d {
+            let layer = &mut alpha[(i * d + j) * px..(i * d + j + 1) * px];
+            for a in layer.iter_mut() {
+                *a = if j == 0 {
+                    1.0
+                } else {
+                    // Just under the share, a little different per layer.
+                    share * (0.5 + 0.45 * rng.random::<f32>())
+                };
+            }
+        }
+    }
+    // Colours alternate black and white from layer to layer: the most a layer can change.
+    let colors: Vec<Rgb32FImage> = (0..n * d)
+        .map(|k| {
+            let v = if k % 2 == 0 { 0.0 } else { 1.0 };
+            Rgb32FImage::from_pixel(w, h, image::Rgb([v, v, v]))
+        })
+        .collect();
+    let mhi = Mhi::new(
+        base.normals().clone(),
+        base.depths().to_vec(),
+        *base.reference(),
+        LayerColor::PerLayer(colors),
+        alpha,
+    )
+    .unwrap();
+    let tgt = target(&mhi, 2.0, -1.0, DVec3::new(0.03, 0.01, 0.02));
+    // Blend weights: normals 3 and 4 negligible (1e-4 each), the others share the rest.
+    let mut weights = vec![0.0_f32; n * px];
+    for p in 0..px {
+        for i in 0..n {
+            weights[i * px + p] = if i >= 3 { 1e-4 } else { (1.0 - 2e-4) / 3.0 };
+        }
+    }
+    let exact = render(
+        &mhi,
+        &tgt,
+        &RenderOptions {
+            blend: Blend::Weights(&weights),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let pruned = render(
+        &mhi,
+        &tgt,
+        &RenderOptions {
+            blend: Blend::Weights(&weights),
+            prune,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let s = pruned.stats;
+    assert!(s.layers_pruned > 0 && s.normals_pruned == 2, "{s:?}");
+    // Not every faint layer may go: together they exceed the share many times over.
+    assert!(s.layers_pruned < 3 * (d - 1), "{s:?}");
+    assert!(s.bound <= prune.budget + 1e-7, "{s:?}");
+    let worst = pruned
+        .image
+        .as_raw()
+        .iter()
+        .zip(exact.image.as_raw())
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0_f32, f32::max);
+    assert!(
+        worst <= s.bound + 1e-6,
+        "a pixel moved by {worst}, beyond the bound {}",
+        s.bound
+    );
+    // An exact plan leaves nothing out and reports a bound of zero.
+    assert_eq!(exact.stats.bound, 0.0);
+    assert_eq!(exact.stats.layers_pruned + exact.stats.normals_pruned, 0);
+}

@@ -240,32 +240,29 @@ impl Trainer {
         device: Device,
     ) -> crate::Result<Self> {
         config.validate()?;
-        if config.data.is_empty() {
-            config.data = vec![DataSource::train(data_root)];
-        }
-        // Open the data before writing anything, so that a bad source leaves no half-made run.
-        DataMix::training(&config.data).map_err(|e| Error::Data(Box::new(e)))?;
         if dir.join("config.json").exists() {
             return Err(Error::Config(format!(
                 "{} already holds a training run; pass --resume to continue it or choose another --run",
                 dir.display()
             )));
         }
-        std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
         if let TrainLoss::Perceptual { weight, .. } = &loss {
             config.perceptual_weight = *weight;
         }
         config.loss = loss.name();
+        // The data is opened (and the data sources filled in) before anything is written, so a
+        // start that fails leaves no half-made run behind.
+        let (stage1, blend) = init_models(&config, &device);
+        let t = Self::assemble(config, dir, data_root, device, stage1, blend, loss, 0, 0.0)?;
+        std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
         write_atomic(
             &dir.join("config.json"),
-            serde_json::to_string_pretty(&config)
+            serde_json::to_string_pretty(&t.config)
                 .map_err(|e| Error::Config(e.to_string()))?
                 .as_bytes(),
         )?;
         write_atomic(&dir.join("log.csv"), CSV_HEADER.as_bytes())?;
         write_atomic(&dir.join("val.csv"), VAL_CSV_HEADER.as_bytes())?;
-        let (stage1, blend) = init_models(&config, &device);
-        let t = Self::assemble(config, dir, data_root, device, stage1, blend, loss, 0, 0.0)?;
         // The training curve starts at the untrained model.
         t.log_validation()?;
         Ok(t)

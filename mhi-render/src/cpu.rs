@@ -243,25 +243,15 @@ fn texels(img: &Rgb32FImage) -> Vec<[f32; 4]> {
         .collect()
 }
 
-/// Render the MHI from `target` (the fast path).
-///
-/// # Errors
-/// Only for invalid blend weights; degenerate geometry is masked (see [`RenderStats`]).
-pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Rendered> {
-    let (n, d) = (mhi.n(), mhi.d());
-    let (tw, th) = (target.width as usize, target.height as usize);
-    let px = tw * th;
-    let mut weights = match opts.blend {
-        Blend::Heuristic(hh) => heuristic_weights(mhi, target, hh),
-        Blend::Weights(w) => normalised_weights(w, n, px)?,
-    };
-    let mut stats = RenderStats {
-        layers: n * d,
-        ..RenderStats::default()
-    };
-    let share = opts.prune.share();
-    // Normals to skip, lightest first, while the dropped weight stays within the share at
-    // every pixel.
+/// The normals a render keeps (`true`) and the largest blend weight dropped at any pixel:
+/// lightest first (by largest weight), normals are dropped while the summed weight they leave
+/// out stays within `share` at every pixel; at least one normal is kept.
+pub(crate) fn normals_to_drop(
+    weights: &[f32],
+    n: usize,
+    px: usize,
+    share: f32,
+) -> (Vec<bool>, f32) {
     let mut active = vec![true; n];
     let mut dropped = vec![0.0_f32; px];
     let mut dropped_max = 0.0_f32;
@@ -288,20 +278,70 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
             }
             dropped_max = new_max;
         }
-        stats.normals_pruned = active.iter().filter(|a| !**a).count();
-        if stats.normals_pruned > 0 {
-            for p in 0..px {
-                let s: f32 = (0..n)
-                    .filter(|i| active[*i])
-                    .map(|i| weights[i * px + p])
-                    .sum();
-                for i in 0..n {
-                    weights[i * px + p] = if active[i] && s > 0.0 {
-                        weights[i * px + p] / s
-                    } else {
-                        0.0
-                    };
-                }
+    }
+    (active, dropped_max)
+}
+
+/// The layers of normal `i` a render skips and their summed largest alpha: among the layers
+/// `visible(j)` except the farthest, faintest first, while the sum stays within `share`.
+pub(crate) fn layers_to_skip(
+    mhi: &Mhi,
+    i: usize,
+    visible: impl Fn(usize) -> bool,
+    share: f32,
+) -> (Vec<bool>, f32) {
+    let d = mhi.d();
+    let mut skip = vec![false; d];
+    let mut mass = 0.0_f32;
+    if share > 0.0 {
+        let mut order: Vec<usize> = (1..d).filter(|&j| visible(j)).collect();
+        order.sort_by(|a, b| {
+            mhi.layer_max_alpha(i, *a)
+                .total_cmp(&mhi.layer_max_alpha(i, *b))
+        });
+        for j in order {
+            let a = mhi.layer_max_alpha(i, j);
+            if mass + a > share {
+                break;
+            }
+            mass += a;
+            skip[j] = true;
+        }
+    }
+    (skip, mass)
+}
+
+/// Render the MHI from `target` (the fast path).
+///
+/// # Errors
+/// Only for invalid blend weights; degenerate geometry is masked (see [`RenderStats`]).
+pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Rendered> {
+    let (n, d) = (mhi.n(), mhi.d());
+    let (tw, th) = (target.width as usize, target.height as usize);
+    let px = tw * th;
+    let mut weights = match opts.blend {
+        Blend::Heuristic(hh) => heuristic_weights(mhi, target, hh),
+        Blend::Weights(w) => normalised_weights(w, n, px)?,
+    };
+    let mut stats = RenderStats {
+        layers: n * d,
+        ..RenderStats::default()
+    };
+    let share = opts.prune.share();
+    let (active, dropped_max) = normals_to_drop(&weights, n, px, share);
+    stats.normals_pruned = active.iter().filter(|a| !**a).count();
+    if stats.normals_pruned > 0 {
+        for p in 0..px {
+            let s: f32 = (0..n)
+                .filter(|i| active[*i])
+                .map(|i| weights[i * px + p])
+                .sum();
+            for i in 0..n {
+                weights[i * px + p] = if active[i] && s > 0.0 {
+                    weights[i * px + p] / s
+                } else {
+                    0.0
+                };
             }
         }
     }
@@ -312,25 +352,9 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
     let mut plan: Vec<Vec<(usize, [f32; 9], bool)>> = Vec::with_capacity(n);
     let mut skipped_mass_max = 0.0_f32;
     for i in 0..n {
-        let mut skip = vec![false; d];
-        if share > 0.0 {
-            let mut order: Vec<usize> = (1..d).filter(|&j| hs[i * d + j].is_some()).collect();
-            order.sort_by(|a, b| {
-                mhi.layer_max_alpha(i, *a)
-                    .total_cmp(&mhi.layer_max_alpha(i, *b))
-            });
-            let mut mass = 0.0_f32;
-            for j in order {
-                let a = mhi.layer_max_alpha(i, j);
-                if mass + a > share {
-                    break;
-                }
-                mass += a;
-                skip[j] = true;
-            }
-            if active[i] {
-                skipped_mass_max = skipped_mass_max.max(mass);
-            }
+        let (skip, mass) = layers_to_skip(mhi, i, |j| hs[i * d + j].is_some(), share);
+        if active[i] {
+            skipped_mass_max = skipped_mass_max.max(mass);
         }
         let mut layers = Vec::new();
         for j in (0..d).rev() {

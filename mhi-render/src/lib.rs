@@ -37,6 +37,7 @@ pub mod diff;
 mod error;
 mod mhi;
 mod oracle;
+pub mod plan;
 pub mod reference;
 pub mod stability;
 mod sweep;
@@ -49,5 +50,6 @@ pub use error::{Error, Result};
 pub use mhi::{LayerColor, Mhi};
 pub use oracle::{PixelTruth, oracle_alpha, oracle_weights};
 pub use sweep::{
-    PlaneSweepVolume, SweepConfig, alphas_from_probabilities, plane_sweep_volume, sweep_mhi,
+    PlaneSweepVolume, SweepConfig, alphas_from_probabilities, check_parallax, plane_sweep_volume,
+    sweep_alphas, sweep_mhi,
 };

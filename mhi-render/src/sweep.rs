@@ -150,6 +150,25 @@ pub struct SweepConfig {
 /// 21.72]; the former 4 / 0.01 scored 19.56 dB, a paired gain of +0.82 dB [+0.50, +1.21].
 /// Lower temperatures and wider windows help up to radius 16; 24 and 32 fall back (20.33,
 /// 20.21 dB). The radius is in pixels: at other image sizes scale it with the short side.
+impl SweepConfig {
+    /// Short side (pixels) at which the default window radius was chosen.
+    pub const TUNED_SHORT_SIDE: u32 = 256;
+
+    /// The defaults with the window radius scaled from [`Self::TUNED_SHORT_SIDE`] to images
+    /// whose short side is `short_side` pixels (at least 1): the same window in scene terms.
+    pub fn for_short_side(short_side: u32) -> Self {
+        let d = Self::default();
+        let r = (f64::from(d.window_radius) * f64::from(short_side)
+            / f64::from(Self::TUNED_SHORT_SIDE))
+        .round()
+        .max(1.0) as u32;
+        Self {
+            window_radius: r,
+            ..d
+        }
+    }
+}
+
 impl Default for SweepConfig {
     fn default() -> Self {
         Self {
@@ -218,6 +237,27 @@ pub fn alphas_from_probabilities(prob: &[f32], d: usize, px: usize, alpha: &mut 
     }
 }
 
+/// Refuse a pair the sweep cannot measure depth from: no baseline, or a far plane so distant
+/// against the baseline that the planes cannot be told apart.
+pub fn check_parallax(reference: &Camera, source: &Camera, depths: &[f64]) -> Result<()> {
+    // With no baseline every plane warps the source identically: the sweep has no parallax to
+    // measure and would return an arbitrary depth.
+    let baseline = (reference.center_in_world() - source.center_in_world()).length();
+    let farthest = depths.iter().cloned().fold(1.0, f64::max);
+    if !(baseline > 1e-9 * farthest) {
+        return Err(Error::InvalidInput(if baseline > 0.0 && farthest > 1e6 {
+            format!(
+                "the farthest plane depth {farthest:e} is more than 1e9 times the baseline between the reference and source cameras ({baseline:e}); the planes cannot be told apart at that range: choose a far depth in the scene's units"
+            )
+        } else {
+            format!(
+                "zero baseline: the reference and source cameras are {baseline:e} apart, so the plane sweep has no parallax; choose views taken from different places"
+            )
+        }));
+    }
+    Ok(())
+}
+
 /// The training-free MHI: for each normal, photo-consistency of the plane-sweep volume against
 /// the reference image, a soft winner-take-all over depths, turned into front-to-back alphas.
 /// The reference image is the layers' colour.
@@ -235,20 +275,33 @@ pub fn sweep_mhi(
             "reference image and camera sizes differ".into(),
         ));
     }
-    // With no baseline every plane warps the source identically: the sweep has no parallax to
-    // measure and would return an arbitrary depth.
-    let baseline = (reference.center_in_world() - source.center_in_world()).length();
-    let farthest = depths.iter().cloned().fold(1.0, f64::max);
-    if !(baseline > 1e-9 * farthest) {
-        return Err(Error::InvalidInput(if baseline > 0.0 && farthest > 1e6 {
-            format!(
-                "the farthest plane depth {farthest:e} is more than 1e9 times the baseline between the reference and source cameras ({baseline:e}); the planes cannot be told apart at that range: choose a far depth in the scene's units"
-            )
-        } else {
-            format!(
-                "zero baseline: the reference and source cameras are {baseline:e} apart, so the plane sweep has no parallax; choose views taken from different places"
-            )
-        }));
+    check_parallax(reference, source, depths)?;
+    let psv = plane_sweep_volume(normals, depths, reference, source_image, source)?;
+    let alpha = sweep_alphas(&psv, reference_image, cfg)?;
+    Mhi::new(
+        normals.clone(),
+        depths.to_vec(),
+        *reference,
+        LayerColor::Shared(reference_image.clone()),
+        alpha,
+    )
+}
+
+/// The sweep's alphas (`N · D · H · W`, normal-major, far first) from a plane-sweep volume on
+/// the grid of `reference_image`: what [`sweep_mhi`] puts in its MHI.
+pub fn sweep_alphas(
+    psv: &PlaneSweepVolume,
+    reference_image: &Rgb32FImage,
+    cfg: &SweepConfig,
+) -> Result<Vec<f32>> {
+    if reference_image.dimensions() != (psv.width, psv.height) {
+        return Err(Error::InvalidInput(format!(
+            "reference image is {}×{}, the plane-sweep volume {}×{}",
+            reference_image.width(),
+            reference_image.height(),
+            psv.width,
+            psv.height
+        )));
     }
     if !(cfg.temperature > 0.0) {
         return Err(Error::InvalidInput(format!(
@@ -256,10 +309,9 @@ pub fn sweep_mhi(
             cfg.temperature
         )));
     }
-    let psv = plane_sweep_volume(normals, depths, reference, source_image, source)?;
-    let (w, h) = (reference.width as usize, reference.height as usize);
+    let (w, h) = (psv.width as usize, psv.height as usize);
     let px = w * h;
-    let (n, d) = (normals.len(), depths.len());
+    let (n, d) = (psv.n, psv.d);
     let refp = reference_image.as_raw();
     let mut alpha = vec![0.0_f32; n * d * px];
     alpha
@@ -308,13 +360,7 @@ pub fn sweep_mhi(
             }
             alphas_from_probabilities(&prob, d, px, out);
         });
-    Mhi::new(
-        normals.clone(),
-        depths.to_vec(),
-        *reference,
-        LayerColor::Shared(reference_image.clone()),
-        alpha,
-    )
+    Ok(alpha)
 }
 
 #[cfg(test)]

@@ -387,4 +387,40 @@ fn the_error_budget_bounds_the_total_change_of_every_pixel() {
     // An exact plan leaves nothing out and reports a bound of zero.
     assert_eq!(exact.stats.bound, 0.0);
     assert_eq!(exact.stats.layers_pruned + exact.stats.normals_pruned, 0);
+
+    // The scene analysis of the same view decides the same and keeps the same bound; a second
+    // view that needs normal 4 keeps it.
+    let plan = mhi_render::plan::analyse(&mhi, &[(&tgt, &weights[..])], prune).unwrap();
+    let dropped: Vec<usize> = plan
+        .per_normal
+        .iter()
+        .filter(|u| u.dropped)
+        .map(|u| u.index)
+        .collect();
+    assert_eq!(dropped, vec![3, 4], "{}", plan.explain());
+    let skipped: usize = plan.per_normal.iter().map(|u| u.layers_skipped).sum();
+    assert_eq!(skipped, s.layers_pruned, "{}", plan.explain());
+    let kept: usize = plan
+        .per_normal
+        .iter()
+        .filter(|u| !u.dropped)
+        .map(|u| d - u.layers_skipped)
+        .sum();
+    assert_eq!(plan.layers_kept, kept);
+    assert!(plan.bound <= prune.budget + 1e-7 && plan.bytes_kept < plan.bytes_exact);
+    assert!(plan.keeps(0, 0) && !plan.keeps(3, 0));
+    let mut needs_4 = weights.clone();
+    for p in 0..px {
+        needs_4[4 * px + p] = 0.5;
+        needs_4[p] = (1.0 - 2e-4) / 3.0 - 0.5 + 1e-4;
+    }
+    let plan2 =
+        mhi_render::plan::analyse(&mhi, &[(&tgt, &weights[..]), (&tgt, &needs_4[..])], prune)
+            .unwrap();
+    assert!(!plan2.per_normal[4].dropped && plan2.per_normal[3].dropped);
+    assert!(plan.explain().contains("left out"));
+    // An exact budget keeps everything.
+    let all = mhi_render::plan::analyse(&mhi, &[(&tgt, &weights[..])], Prune::NONE).unwrap();
+    assert_eq!(all.layers_kept, n * d);
+    assert_eq!(all.bytes_kept, all.bytes_exact);
 }

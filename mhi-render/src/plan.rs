@@ -1,0 +1,232 @@
+//! Scene analysis before rendering: what an MHI does not need for a given set of target views,
+//! decided with the same error budget as the render ([`Prune`]) and recorded so a user can see
+//! what was left out, why, and the bound it kept.
+
+use mhi_geom::Camera;
+use serde::{Deserialize, Serialize};
+
+use crate::cpu::{Prune, layers_to_skip, normals_to_drop};
+use crate::error::{Error, Result};
+use crate::mhi::{LayerColor, Mhi};
+
+/// How one normal is used by the target views.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NormalUse {
+    /// Index in the MHI's normal set.
+    pub index: usize,
+    /// The normal (reference camera frame).
+    pub normal: [f64; 3],
+    /// Its largest blend weight over every pixel of every target view.
+    pub max_weight: f32,
+    /// Left out of every view: its weight fits the budget's normal share everywhere.
+    pub dropped: bool,
+    /// Layers of this normal with no alpha at all (the farthest excepted).
+    pub layers_empty: usize,
+    /// Layers of this normal left out within the budget's layer share (the empty ones
+    /// included).
+    pub layers_skipped: usize,
+    /// Their summed largest alpha: the most they could change a pixel of this normal's image.
+    pub skipped_mass: f32,
+    /// Nearest and farthest depth of the layers kept besides the farthest (the occupied depth
+    /// range), `None` when only the farthest is kept.
+    pub occupied_depths: Option<[f64; 2]>,
+    /// The depth indices kept (far first; empty when the normal is dropped).
+    pub kept_depths: Vec<usize>,
+    /// Why, in words.
+    pub reason: String,
+}
+
+/// What an MHI needs for a set of views, within one budget.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ScenePlan {
+    /// The budget (colour units per pixel).
+    pub budget: f32,
+    /// Target views analysed.
+    pub views: usize,
+    /// Normals N and planes D.
+    pub normals: usize,
+    /// Planes per normal.
+    pub planes: usize,
+    /// Per normal.
+    pub per_normal: Vec<NormalUse>,
+    /// Layers (N · D) kept: those of kept normals that are not skipped.
+    pub layers_kept: usize,
+    /// Reference pixels where every layer of every kept normal in front of the farthest is
+    /// transparent beyond the layer share (nothing but the far plane there).
+    pub background_fraction: f64,
+    /// Bytes of the MHI's layers (alpha f32 per texel, plus colour: shared once, or RGB per
+    /// layer) with everything, and with only what is kept.
+    pub bytes_exact: usize,
+    /// See [`ScenePlan::bytes_exact`].
+    pub bytes_kept: usize,
+    /// The largest change any pixel of any analysed view can see from what this plan leaves out
+    /// (worst normal's skipped mass + worst pixel's dropped weight + the transmittance stop).
+    pub bound: f32,
+}
+
+impl ScenePlan {
+    /// Whether layer `(normal, depth)` is kept.
+    pub fn keeps(&self, normal: usize, depth: usize) -> bool {
+        self.per_normal
+            .get(normal)
+            .is_some_and(|u| u.kept_depths.contains(&depth))
+    }
+
+    /// The plan as lines of text (what `render --explain` prints).
+    pub fn explain(&self) -> String {
+        let mut s = format!(
+            "scene plan for {} view(s), budget {:.5} per pixel ({:.2} of an 8-bit level); guaranteed bound {:.5}\n",
+            self.views,
+            self.budget,
+            self.budget * 255.0,
+            self.bound
+        );
+        for u in &self.per_normal {
+            s += &format!(
+                "  normal {} ({:+.2}, {:+.2}, {:+.2}): {}\n",
+                u.index, u.normal[0], u.normal[1], u.normal[2], u.reason
+            );
+        }
+        s += &format!(
+            "  layers kept {} of {}; background only (far plane) at {:.1} % of reference pixels\n  size of the layers {:.2} MB exact, {:.2} MB kept ({:.0} %)",
+            self.layers_kept,
+            self.normals * self.planes,
+            100.0 * self.background_fraction,
+            self.bytes_exact as f64 / 1e6,
+            self.bytes_kept as f64 / 1e6,
+            100.0 * self.bytes_kept as f64 / self.bytes_exact.max(1) as f64
+        );
+        s
+    }
+}
+
+/// Decide what `mhi` does not need to render `targets`, each with its blend weights
+/// (`N × H × W`, normalised; e.g. [`crate::heuristic_weights`]), within `prune`'s budget: the
+/// same rules as [`crate::render`], applied to all views at once (a normal is dropped only if
+/// every view may drop it; layers are skipped whatever their visibility).
+///
+/// # Errors
+/// When a view's weights do not have `N × H × W` entries.
+pub fn analyse(mhi: &Mhi, targets: &[(&Camera, &[f32])], prune: Prune) -> Result<ScenePlan> {
+    let (n, d) = (mhi.n(), mhi.d());
+    let share = prune.share();
+    let mut kept_by_some = vec![false; n];
+    let mut max_weight = vec![0.0_f32; n];
+    let mut dropped_worst = 0.0_f32;
+    for (cam, w) in targets {
+        let px = cam.width as usize * cam.height as usize;
+        if w.len() != n * px {
+            return Err(Error::InvalidInput(format!(
+                "blend weights of a {}x{} view: {} values for {n} normals, expected {}",
+                cam.width,
+                cam.height,
+                w.len(),
+                n * px
+            )));
+        }
+        let (active, dropped) = normals_to_drop(w, n, px, share);
+        for i in 0..n {
+            kept_by_some[i] |= active[i];
+            max_weight[i] = w[i * px..(i + 1) * px]
+                .iter()
+                .fold(max_weight[i], |m, v| m.max(*v));
+        }
+        dropped_worst = dropped_worst.max(dropped);
+    }
+    if targets.is_empty() {
+        kept_by_some.fill(true);
+    }
+    let depths = mhi.depths().to_vec();
+    let ref_px = mhi.reference().width as usize * mhi.reference().height as usize;
+    let mut per_normal = Vec::with_capacity(n);
+    let mut layers_kept = 0;
+    let mut mass_worst = 0.0_f32;
+    let mut kept_layers_of = Vec::with_capacity(n);
+    for i in 0..n {
+        let (skip, mass) = layers_to_skip(mhi, i, |_| true, share);
+        let empty = (1..d).filter(|&j| mhi.layer_max_alpha(i, j) == 0.0).count();
+        let skipped = skip.iter().filter(|s| **s).count();
+        let dropped = !kept_by_some[i];
+        let kept: Vec<usize> = (1..d).filter(|&j| !skip[j]).collect();
+        let occupied = (!kept.is_empty()).then(|| {
+            let ds: Vec<f64> = kept.iter().map(|&j| depths[j]).collect();
+            [
+                ds.iter().cloned().fold(f64::INFINITY, f64::min),
+                ds.iter().cloned().fold(0.0, f64::max),
+            ]
+        });
+        let reason = if dropped {
+            format!(
+                "left out: its blend weight is at most {:.5} in every view, within the normal share {share:.5}",
+                max_weight[i]
+            )
+        } else {
+            mass_worst = mass_worst.max(mass);
+            layers_kept += d - skipped;
+            kept_layers_of.push((i, skip.clone()));
+            format!(
+                "kept (weight up to {:.3}); {skipped} of {} layers left out ({empty} empty), their alphas summing to {mass:.5}; {}",
+                max_weight[i],
+                d,
+                match occupied {
+                    Some([a, b]) => format!("occupied depths {a:.3} to {b:.3}"),
+                    None => "only the far plane is occupied".into(),
+                }
+            )
+        };
+        let nv = mhi.normals().normals()[i];
+        per_normal.push(NormalUse {
+            index: i,
+            normal: [nv.x, nv.y, nv.z],
+            max_weight: max_weight[i],
+            dropped,
+            layers_empty: empty,
+            layers_skipped: skipped,
+            skipped_mass: mass,
+            occupied_depths: occupied,
+            kept_depths: if dropped {
+                Vec::new()
+            } else {
+                (0..d).filter(|&j| !skip[j]).collect()
+            },
+            reason,
+        });
+    }
+    // Reference pixels with nothing in front of the far plane in any kept normal.
+    let mut background = 0usize;
+    for p in 0..ref_px {
+        let front: f32 = kept_layers_of
+            .iter()
+            .flat_map(|(i, skip)| {
+                (1..d)
+                    .filter(move |&j| !skip[j])
+                    .map(move |j| mhi.alpha_layer(*i, j)[p])
+            })
+            .sum();
+        if front <= share {
+            background += 1;
+        }
+    }
+    let colour_per_layer = match mhi.color() {
+        LayerColor::Shared(_) => 0,
+        LayerColor::PerLayer(_) => 3,
+    };
+    let shared_colour = if colour_per_layer == 0 {
+        3 * ref_px * 4
+    } else {
+        0
+    };
+    let layer_bytes = ref_px * 4 * (1 + colour_per_layer);
+    Ok(ScenePlan {
+        budget: prune.budget,
+        views: targets.len(),
+        normals: n,
+        planes: d,
+        per_normal,
+        layers_kept,
+        background_fraction: background as f64 / ref_px.max(1) as f64,
+        bytes_exact: shared_colour + n * d * layer_bytes,
+        bytes_kept: shared_colour + layers_kept * layer_bytes,
+        bound: mass_worst + dropped_worst + share,
+    })
+}

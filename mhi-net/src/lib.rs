@@ -23,14 +23,19 @@ mod model;
 mod nets;
 pub mod pickle;
 mod train;
+mod volume;
 
-pub use model::{Model, cost_volume};
+pub use model::Model;
 pub use nets::{
-    BlendNet, BlendNetConfig, Stage1, Stage1Config, UNet3d, UNet3dConfig, conv3d_planes_as_2d,
+    BlendNet, BlendNetConfig, SOFT_FLOOR, Stage1, Stage1Config, UNet3d, UNet3dConfig,
+    conv3d_planes_as_2d,
 };
 pub use train::{
     CSV_HEADER, EvalScores, GRAD_CLIP_NORM, Sample, StepReport, StepTimes, TrainConfig, Trainer,
     VAL_CSV_HEADER, init_models,
+};
+pub use volume::{
+    LOGIT_INPUT_SCALE, PRIOR_EPS, Prior, Stage1Input, SweepPrior, cost_volume, stage1_input,
 };
 
 /// Why building, training or resuming a model failed.

@@ -8,11 +8,12 @@ use image::Rgb32FImage;
 use mhi_data::LoadedFrame;
 use mhi_geom::{NormalSet, depths_linear_in_disparity};
 use mhi_render::diff::image_to_tensor;
-use mhi_render::{LayerColor, Mhi, plane_sweep_volume};
+use mhi_render::{LayerColor, Mhi};
 
 use crate::Error;
 use crate::nets::{BlendNet, Stage1};
-use crate::train::{Latest, TrainConfig, load_networks};
+use crate::train::{Latest, TrainConfig, alphas_of, load_networks};
+use crate::volume::{Stage1Input, stage1_input};
 
 /// A trained model (the networks of a run's latest checkpoint) on a non-autodiff device.
 pub struct Model {
@@ -95,9 +96,29 @@ impl Model {
         self.step > self.config.phase1_steps
     }
 
+    /// The pixel blocks stage 1 runs on for a `width × height` input: the training scale times
+    /// the ratio of this short side to the training short side (rounded, when the image
+    /// divides by it), so the U-Net sees the scene at the resolution it was trained at. Only
+    /// with the sweep prior (only a correction is coarse then); without it, the training scale.
+    pub fn stage1_scale(&self, width: usize, height: usize) -> usize {
+        let base = self.config.stage1.scale.max(1);
+        if self.config.prior != crate::volume::Prior::Sweep {
+            return base;
+        }
+        let trained = self.config.width.min(self.config.height) as f64;
+        let ratio = (width.min(height) as f64 / trained).round().max(1.0) as usize;
+        let scale = base * ratio;
+        let m = scale << self.config.stage1.unet.levels;
+        if ratio > 1 && width.is_multiple_of(m) && height.is_multiple_of(m) {
+            scale
+        } else {
+            base
+        }
+    }
+
     /// Check that a view size suits the U-Nets (each side divisible by `2^levels`).
     pub fn check_size(&self, width: u32, height: u32) -> crate::Result<()> {
-        let m = 1u32 << self.config.stage1.unet.levels.max(self.config.blend.levels);
+        let m = self.config.size_multiple() as u32;
         if width == 0 || height == 0 || !width.is_multiple_of(m) || !height.is_multiple_of(m) {
             return Err(Error::Config(format!(
                 "image size {width}x{height}: each side must be a positive multiple of {m} for this model"
@@ -106,23 +127,29 @@ impl Model {
         Ok(())
     }
 
-    /// The oriented cost volume of two views.
-    ///
-    /// # Shapes
-    /// returns `[N, 6, D, H, W]`
-    pub fn cost_volume(
+    /// Stage 1's input for two views: the oriented cost volume `[N, C, D, H, W]` and, for a
+    /// model on the sweep prior, the sweep's logits on this image size.
+    pub fn stage1_input(
         &self,
         reference: &LoadedFrame,
         source: &LoadedFrame,
-    ) -> crate::Result<Tensor<5>> {
-        cost_volume(&self.normals, &self.depths, reference, source, &self.device)
+    ) -> crate::Result<Stage1Input> {
+        let (w, h) = (reference.image.width(), reference.image.height());
+        stage1_input(
+            &self.normals,
+            &self.depths,
+            reference,
+            source,
+            self.config.prior_sweep(w, h).as_ref(),
+            &self.device,
+        )
     }
 
-    /// Stage 1: alphas `N · D · H · W` (normal-major, far first) from a cost volume.
-    pub fn alphas(&self, volume: Tensor<5>) -> crate::Result<Vec<f32>> {
-        let v: Vec<f32> = self
-            .stage1
-            .forward(volume)
+    /// Stage 1: alphas `N · D · H · W` (normal-major, far first) from its input.
+    pub fn alphas(&self, input: Stage1Input) -> crate::Result<Vec<f32>> {
+        let [_, _, _, h, w] = input.volume.dims();
+        let stage1 = self.stage1.clone().with_scale(self.stage1_scale(w, h));
+        let v: Vec<f32> = alphas_of(&stage1, input)
             .into_data()
             .try_to_vec()
             .map_err(|e| Error::NonFinite(format!("stage-1 output: {e:?}")))?;
@@ -187,51 +214,4 @@ impl Model {
         }
         Ok(v)
     }
-}
-
-/// The oriented cost volume `[N, 6, D, H, W]`: per normal and plane, the reference image and the
-/// source image warped onto that plane (zero where the plane is not visible from the source).
-pub fn cost_volume(
-    normals: &NormalSet,
-    depths: &[f64],
-    reference: &LoadedFrame,
-    source: &LoadedFrame,
-    device: &Device,
-) -> crate::Result<Tensor<5>> {
-    let psv = plane_sweep_volume(
-        normals,
-        depths,
-        &reference.camera,
-        &source.image,
-        &source.camera,
-    )?;
-    let (n, d) = (normals.len(), depths.len());
-    let (w, h) = (
-        reference.image.width() as usize,
-        reference.image.height() as usize,
-    );
-    let px = w * h;
-    let refp = reference.image.as_raw();
-    let mut data = vec![0.0_f32; n * 6 * d * px];
-    for i in 0..n {
-        for c in 0..6 {
-            for j in 0..d {
-                let dst = &mut data[((i * 6 + c) * d + j) * px..((i * 6 + c) * d + j + 1) * px];
-                if c < 3 {
-                    for (p, v) in dst.iter_mut().enumerate() {
-                        *v = refp[3 * p + c];
-                    }
-                } else {
-                    let src = psv.plane_rgb(i, j);
-                    for (p, v) in dst.iter_mut().enumerate() {
-                        *v = src[3 * p + c - 3];
-                    }
-                }
-            }
-        }
-    }
-    Ok(Tensor::from_data(
-        TensorData::new(data, [n, 6, d, h, w]),
-        device,
-    ))
 }

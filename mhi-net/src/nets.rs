@@ -27,6 +27,10 @@ pub struct UNet3dConfig {
     /// Dilations of the residual convolutions at the bottom (in the image axes).
     #[config(default = "vec![1, 2, 4]")]
     pub dilations: Vec<usize>,
+    /// Residual head: the last convolution starts at zero and its output is returned as is (a
+    /// correction of a prior's alpha logits) instead of through a sigmoid.
+    #[config(default = false)]
+    pub residual: bool,
 }
 
 /// A 3 × k × k convolution of `[B, C, D, H, W]` with zero padding 1 on the plane axis, and
@@ -117,6 +121,7 @@ pub struct UNet3d {
     up: Vec<ConvTranspose3d>,
     dec: Vec<Block3d>,
     head: Conv3d,
+    residual: bool,
 }
 
 impl UNet3dConfig {
@@ -145,16 +150,40 @@ impl UNet3dConfig {
             dec: (0..self.levels)
                 .map(|l| Block3d::new(2 * ch(l), ch(l), [1, 1, 1], 1, device))
                 .collect(),
-            head: Conv3dConfig::new([w, 1], [1, 1, 1]).init(device),
+            head: zeroed_if(
+                self.residual,
+                Conv3dConfig::new([w, 1], [1, 1, 1]).init(device),
+            ),
+            residual: self.residual,
         }
     }
 }
 
+/// A convolution with zero weights and bias when `zero` (a residual head: the untrained network
+/// changes nothing).
+fn zeroed_if<M: Module>(zero: bool, m: M) -> M {
+    if !zero {
+        return m;
+    }
+    struct Zero;
+    impl burn::module::ModuleMapper for Zero {
+        fn map_float<const D: usize>(
+            &mut self,
+            param: burn::module::Param<Tensor<D>>,
+        ) -> burn::module::Param<Tensor<D>> {
+            let (id, t, mapper) = param.consume();
+            burn::module::Param::from_mapped_value(id, t.zeros_like(), mapper)
+        }
+    }
+    m.map(&mut Zero)
+}
+
 impl UNet3d {
-    /// Alphas of every plane.
+    /// Alphas of every plane, or with a residual head the raw correction of their logits.
     ///
     /// # Shapes
-    /// `[B, 6, D, H, W]` → `[B, 1, D, H, W]` in `[0, 1]` (H and W divisible by `2^levels`)
+    /// `[B, C, D, H, W]` → `[B, 1, D, H, W]`, in `[0, 1]` unless residual (H and W divisible
+    /// by `2^levels`)
     pub fn forward(&self, x: Tensor<5>) -> Tensor<5> {
         let mut x = self.stem.forward(x);
         let mut skips = Vec::with_capacity(self.down.len());
@@ -169,7 +198,8 @@ impl UNet3d {
             let skip = skips.pop().expect("one skip per level");
             x = dec.forward(Tensor::cat(vec![up.forward(x), skip], 1));
         }
-        sigmoid(self.head.forward(x))
+        let y = self.head.forward(x);
+        if self.residual { y } else { sigmoid(y) }
     }
 }
 
@@ -183,12 +213,19 @@ pub struct Stage1Config {
     /// One network for every normal (the normal's volume differs, the weights do not).
     #[config(default = true)]
     pub share_weights: bool,
+    /// The U-Net runs on the cost volume averaged over `scale × scale` pixel blocks and its
+    /// output is upsampled bilinearly to the full grid (1: full resolution). With the sweep
+    /// prior the residual is upsampled and added to the full-resolution logits, so the prior
+    /// keeps its detail. Images must be divisible by `scale · 2^levels`.
+    #[config(default = 1)]
+    pub scale: usize,
 }
 
 /// Stage 1 of the model.
 #[derive(Module, Debug)]
 pub struct Stage1 {
     nets: Vec<UNet3d>,
+    scale: usize,
 }
 
 impl Stage1Config {
@@ -197,11 +234,23 @@ impl Stage1Config {
         let count = if self.share_weights { 1 } else { self.normals };
         Stage1 {
             nets: (0..count).map(|_| self.unet.init(device)).collect(),
+            scale: self.scale.max(1),
         }
     }
 }
 
 impl Stage1 {
+    /// The same networks run on `scale × scale` pixel blocks (see [`Stage1Config::scale`]).
+    pub fn with_scale(mut self, scale: usize) -> Self {
+        self.scale = scale.max(1);
+        self
+    }
+
+    /// The pixel blocks the networks run on.
+    pub fn scale(&self) -> usize {
+        self.scale
+    }
+
     /// Set the bias of every alpha head to `bias`: a large bias starts every alpha saturated
     /// near 1 (a stress test of training; the sigmoid's gradient is then tiny but finite).
     pub fn with_head_bias(mut self, bias: f32) -> Self {
@@ -213,11 +262,36 @@ impl Stage1 {
         self
     }
 
-    /// Alphas of all normals.
+    /// Alphas (or residuals) of all normals, at the volume's resolution.
     ///
     /// # Shapes
-    /// `[N, 6, D, H, W]` (one oriented cost volume per normal) → `[N, 1, D, H, W]`
+    /// `[N, C, D, H, W]` (one oriented cost volume per normal) → `[N, 1, D, H, W]`
     pub fn forward(&self, volume: Tensor<5>) -> Tensor<5> {
+        if self.scale <= 1 {
+            return self.forward_full(volume);
+        }
+        use burn::tensor::module::{avg_pool2d, interpolate};
+        use burn::tensor::ops::{AvgPoolOptions, InterpolateMode, InterpolateOptions};
+        let [n, c, d, h, w] = volume.dims();
+        let s = self.scale;
+        let small = avg_pool2d(
+            volume.reshape([n, c * d, h, w]),
+            AvgPoolOptions {
+                kernel_size: [s, s],
+                stride: [s, s],
+                padding: [(0, 0), (0, 0)],
+                count_include_pad: true,
+                ceil_mode: false,
+            },
+        );
+        let [_, _, hs, ws] = small.dims();
+        let out = self.forward_full(small.reshape([n, c, d, hs, ws]));
+        let mut opts = InterpolateOptions::new(InterpolateMode::Bilinear);
+        opts.output_size = Some([h, w]);
+        interpolate(out.reshape([n, d, hs, ws]), opts).reshape([n, 1, d, h, w])
+    }
+
+    fn forward_full(&self, volume: Tensor<5>) -> Tensor<5> {
         if self.nets.len() == 1 {
             return self.nets[0].forward(volume);
         }
@@ -240,6 +314,11 @@ fn b_replace(
     *slot = Some(burn::module::Param::from_tensor(t.ones_like() * value));
 }
 
+/// Smallest heuristic weight whose logarithm a residual blending network corrects (weights
+/// below it count as this; a normalised weight that small contributes less than 1e-30 of a
+/// pixel).
+pub const SOFT_FLOOR: f32 = 1e-30;
+
 /// Size of the 2D blending U-Net.
 #[derive(Config, Debug)]
 pub struct BlendNetConfig {
@@ -251,6 +330,11 @@ pub struct BlendNetConfig {
     /// Number of times the image is halved.
     #[config(default = 2)]
     pub levels: usize,
+    /// Residual head: the last convolution starts at zero and corrects the logarithm of the
+    /// heuristic weights (the input's last N channels), so the untrained network blends exactly
+    /// as the heuristic does.
+    #[config(default = false)]
+    pub residual: bool,
 }
 
 /// Convolution, layer normalisation over channels, ReLU (2D).
@@ -289,6 +373,7 @@ pub struct BlendNet {
     up: Vec<ConvTranspose2d>,
     dec: Vec<Block2d>,
     head: Conv2d,
+    residual: bool,
 }
 
 impl BlendNetConfig {
@@ -311,7 +396,11 @@ impl BlendNetConfig {
             dec: (0..self.levels)
                 .map(|l| Block2d::new(2 * ch(l), ch(l), 1, device))
                 .collect(),
-            head: Conv2dConfig::new([w, self.normals], [1, 1]).init(device),
+            head: zeroed_if(
+                self.residual,
+                Conv2dConfig::new([w, self.normals], [1, 1]).init(device),
+            ),
+            residual: self.residual,
         }
     }
 }
@@ -323,6 +412,11 @@ impl BlendNet {
     /// `[1, 4N, H, W]` (the N multi-normal images and their heuristic weight) → `[1, N, H, W]`,
     /// a softmax over N at every pixel
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
+        let [_, c, _, _] = x.dims();
+        let n = c / 4;
+        let prior = self
+            .residual
+            .then(|| x.clone().narrow(1, 3 * n, n).clamp_min(SOFT_FLOOR).log());
         let mut x = self.stem.forward(x);
         let mut skips = Vec::with_capacity(self.down.len());
         for down in &self.down {
@@ -333,7 +427,14 @@ impl BlendNet {
             let skip = skips.pop().expect("one skip per level");
             x = dec.forward(Tensor::cat(vec![up.forward(x), skip], 1));
         }
-        softmax(self.head.forward(x), 1)
+        let logits = self.head.forward(x);
+        softmax(
+            match prior {
+                Some(p) => p + logits,
+                None => logits,
+            },
+            1,
+        )
     }
 }
 

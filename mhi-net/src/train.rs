@@ -20,6 +20,8 @@ use serde::{Deserialize, Serialize};
 use crate::Error;
 use crate::loss::TrainLoss;
 use crate::nets::{BlendNet, BlendNetConfig, Stage1, Stage1Config, UNet3dConfig};
+use crate::volume::{Prior, Stage1Input, stage1_input};
+use mhi_render::SweepConfig;
 
 /// Norm to which gradients are clipped by default.
 pub const GRAD_CLIP_NORM: f32 = 1.0;
@@ -77,6 +79,14 @@ pub struct TrainConfig {
     /// validation. Empty in runs written before it was recorded (they trained on one root).
     #[config(default = "Vec::new()")]
     pub data: Vec<DataSource>,
+    /// What stage 1 starts from: nothing (the paper's network) or the training-free sweep,
+    /// whose alpha logits it corrects (see [`TrainConfig::with_sweep_prior`]).
+    #[config(default = "Prior::None")]
+    pub prior: Prior,
+    /// Score only the target pixels the reference covers (others are replaced by the target
+    /// before the loss, so they add no error and no gradient).
+    #[config(default = false)]
+    pub covered_loss: bool,
 }
 
 impl TrainConfig {
@@ -102,8 +112,49 @@ impl TrainConfig {
             o.entry("val_samples").or_insert(serde_json::json!(0));
             o.entry("perceptual_weight")
                 .or_insert(serde_json::json!(crate::loss::VGG_FEATURE_SCALE));
+            o.entry("prior").or_insert(serde_json::json!("None"));
+            o.entry("covered_loss").or_insert(serde_json::json!(false));
+            if let Some(s1) = o.get_mut("stage1").and_then(|v| v.as_object_mut()) {
+                s1.entry("scale").or_insert(serde_json::json!(1));
+            }
+            for part in [&["stage1", "unet"][..], &["blend"][..]] {
+                let mut at = Some(&mut *o);
+                for key in part {
+                    at = at
+                        .and_then(|m| m.get_mut(*key))
+                        .and_then(|v| v.as_object_mut());
+                }
+                if let Some(m) = at {
+                    m.entry("residual").or_insert(serde_json::json!(false));
+                }
+            }
         }
         serde_json::from_value(v).map_err(bad)
+    }
+
+    /// The same run on the sweep prior: stage 1 takes the sweep's logits as a seventh channel
+    /// and predicts a zero-initialised residual on them, the blending network a zero-initialised
+    /// residual on the log Soft weights, and the loss scores covered pixels only. Untrained, it
+    /// renders the sweep blended with Soft.
+    pub fn with_sweep_prior(mut self) -> Self {
+        self.prior = Prior::Sweep;
+        self.stage1.unet.in_channels = Prior::Sweep.channels();
+        self.stage1.unet.residual = true;
+        self.blend.residual = true;
+        self.covered_loss = true;
+        self
+    }
+
+    /// The sweep's constants for the prior on images of `width × height` (the window scaled
+    /// with the short side), or `None` without the prior.
+    pub fn prior_sweep(&self, width: u32, height: u32) -> Option<SweepConfig> {
+        (self.prior == Prior::Sweep).then(|| SweepConfig::for_short_side(width.min(height)))
+    }
+
+    /// Every image side must be a multiple of this: `2^levels` of each U-Net, times stage 1's
+    /// scale.
+    pub fn size_multiple(&self) -> usize {
+        (self.stage1.scale.max(1) << self.stage1.unet.levels).max(1 << self.blend.levels)
     }
 
     /// Total number of steps of both phases.
@@ -123,11 +174,18 @@ impl TrainConfig {
 
     fn validate(&self) -> crate::Result<()> {
         self.normal_set()?;
-        let m = 1usize << self.stage1.unet.levels.max(self.blend.levels);
+        let m = self.size_multiple();
         if !(self.width as usize).is_multiple_of(m) || !(self.height as usize).is_multiple_of(m) {
             return Err(Error::Config(format!(
-                "training size {}x{} must be divisible by {m} (2^levels of the U-Nets)",
-                self.width, self.height
+                "training size {}x{} must be divisible by {m} (the U-Nets halve the image {} times{})",
+                self.width,
+                self.height,
+                self.stage1.unet.levels.max(self.blend.levels),
+                if self.stage1.scale > 1 {
+                    format!(", after stage 1 averages {0}x{0} blocks", self.stage1.scale)
+                } else {
+                    String::new()
+                }
             )));
         }
         if self.planes == 0 || self.stage1.normals == 0 || self.blend.normals != self.stage1.normals
@@ -135,6 +193,20 @@ impl TrainConfig {
             return Err(Error::Config(
                 "planes and normals must be positive and agree between the stages".into(),
             ));
+        }
+        let (channels, residual) = (self.prior.channels(), self.prior == Prior::Sweep);
+        if self.stage1.unet.in_channels != channels || self.stage1.unet.residual != residual {
+            return Err(Error::Config(format!(
+                "prior {:?} needs a stage-1 network with {channels} input channels and {} head; the config has {} channels and {} head",
+                self.prior,
+                if residual { "a residual" } else { "an alpha" },
+                self.stage1.unet.in_channels,
+                if self.stage1.unet.residual {
+                    "a residual"
+                } else {
+                    "an alpha"
+                },
+            )));
         }
         if !(self.lr > 0.0 && self.lr.is_finite()) {
             return Err(Error::Config(format!(
@@ -513,43 +585,41 @@ impl Trainer {
         } else {
             self.plain()
         };
-        let volume = self.cost_volume_on(&sample, &device)?;
+        let input = self.stage1_input_on(&sample, &device)?;
         let mut times = StepTimes {
             volume_ms: ms(t0),
             ..StepTimes::default()
         };
         let t1 = Instant::now();
         let alpha = if phase == 1 {
-            alphas_of(&self.stage1, volume)
+            alphas_of(&self.stage1, input)
         } else {
-            self.frozen_alphas_of(volume).autodiff()
+            self.frozen_alphas_of(input).autodiff()
         };
         let n = self.normals.len();
         times.stage1_ms = ms(t1);
         let t2 = Instant::now();
+        let inputs = self.render_inputs(&sample, &self.device)?;
         let RenderInputs {
             geom,
             color,
             soft,
             target,
-        } = self.render_inputs(&sample, &self.device)?;
-        let (loss, output) = if phase == 1 {
-            let (_, mni) = render_shared(alpha, color, &geom, soft);
-            times.render_ms = ms(t2);
-            let t3 = Instant::now();
-            let loss = self.loss.compute(mni.clone(), target.clone())?;
-            times.loss_ms = ms(t3);
-            (loss, mni)
+            ..
+        } = &inputs;
+        let (_, mni) = render_shared(alpha, color.clone(), geom, soft.clone());
+        let output = if phase == 1 {
+            mni
         } else {
-            let (_, mni) = render_shared(alpha, color, &geom, soft.clone());
-            let mni = mni.detach();
-            let image = learned_blend(&self.blend, mni, soft);
-            times.render_ms = ms(t2);
-            let t3 = Instant::now();
-            let loss = self.loss.compute(image.clone(), target.clone())?;
-            times.loss_ms = ms(t3);
-            (loss, image)
+            learned_blend(&self.blend, mni.detach(), soft.clone())
         };
+        times.render_ms = ms(t2);
+        let t3 = Instant::now();
+        let loss = self
+            .loss
+            .compute(inputs.scored(output.clone()), target.clone())?;
+        times.loss_ms = ms(t3);
+        let target = target.clone();
         let t4 = Instant::now();
         let loss_value = scalar(loss.clone())?;
         if !loss_value.is_finite() {
@@ -592,30 +662,51 @@ impl Trainer {
     ///
     /// # Shapes
     /// `[N, 6, D, H, W]` → `[N·D, 1, H, W]`
-    fn frozen_alphas_of(&self, volume: Tensor<5>) -> Tensor<4> {
-        alphas_of(&self.stage1.valid(), volume)
+    fn frozen_alphas_of(&self, input: Stage1Input) -> Tensor<4> {
+        alphas_of(&self.stage1.valid(), input)
     }
 
     /// The constant tensors of rendering a sample on `device`: warp grids, reference colour,
     /// Soft weights and the target image.
     fn render_inputs(&self, s: &Sample, device: &Device) -> crate::Result<RenderInputs> {
         let (r, t) = (&s.reference.camera, &s.target.camera);
+        let covered = self.config.covered_loss.then(|| {
+            let far = self.depths.first().copied().unwrap_or(self.config.far);
+            let m: Vec<f32> = mhi_eval::coverage::covered_mask(r, t, far)
+                .into_iter()
+                .map(f32::from)
+                .collect();
+            Tensor::from_data(
+                burn::tensor::TensorData::new(m, [1, 1, t.height as usize, t.width as usize]),
+                device,
+            )
+        });
         Ok(RenderInputs {
             geom: WarpGeometry::new(&self.normals, &self.depths, r, t, device)?,
             color: image_to_tensor(&s.reference.image, device),
             soft: heuristic_weights_tensor(&self.normals, r, t, BlendHeuristic::Soft, device),
             target: image_to_tensor(&s.target.image, device),
+            covered,
         })
     }
 
-    /// The oriented cost volume `[N, 6, D, H, W]`: per normal and plane, the reference image and
-    /// the source image warped onto that plane.
-    pub fn cost_volume(&self, s: &Sample) -> crate::Result<Tensor<5>> {
-        self.cost_volume_on(s, &self.device)
+    /// Stage 1's input for a sample: the oriented cost volume `[N, C, D, H, W]` (per normal
+    /// and plane, the reference image and the source image warped onto that plane) and the
+    /// sweep prior when the run has one.
+    pub fn stage1_input(&self, s: &Sample) -> crate::Result<Stage1Input> {
+        self.stage1_input_on(s, &self.device)
     }
 
-    fn cost_volume_on(&self, s: &Sample, device: &Device) -> crate::Result<Tensor<5>> {
-        crate::model::cost_volume(&self.normals, &self.depths, &s.reference, &s.source, device)
+    fn stage1_input_on(&self, s: &Sample, device: &Device) -> crate::Result<Stage1Input> {
+        let (w, h) = (s.reference.image.width(), s.reference.image.height());
+        stage1_input(
+            &self.normals,
+            &self.depths,
+            &s.reference,
+            &s.source,
+            self.config.prior_sweep(w, h).as_ref(),
+            device,
+        )
     }
 
     fn append_log(&self, r: &StepReport) -> crate::Result<()> {
@@ -726,16 +817,16 @@ impl Trainer {
         let n = self.normals.len();
         let (w, h) = (self.config.width as usize, self.config.height as usize);
         let plain = self.plain();
-        let alpha = self.frozen_alphas_of(self.cost_volume_on(&s, &plain)?);
-        let RenderInputs {
-            geom,
-            color,
-            soft,
-            target,
-        } = self.render_inputs(&s, &plain)?;
-        let (_, mni) = render_shared(alpha, color, &geom, soft);
-        let target = target.expand([n, 3, h, w]);
-        scalar(self.loss.compute(mni, target)?)
+        let alpha = self.frozen_alphas_of(self.stage1_input_on(&s, &plain)?);
+        let inputs = self.render_inputs(&s, &plain)?;
+        let (_, mni) = render_shared(
+            alpha,
+            inputs.color.clone(),
+            &inputs.geom,
+            inputs.soft.clone(),
+        );
+        let target = inputs.target.clone().expand([n, 3, h, w]);
+        scalar(self.loss.compute(inputs.scored(mni), target)?)
     }
 
     /// Mean PSNR and (with `lpips`) LPIPS over `count` deterministic validation samples (see
@@ -751,12 +842,13 @@ impl Trainer {
         let blend = self.blend.valid();
         for k in 0..count {
             let s = self.validation_sample(k)?;
-            let alpha = self.frozen_alphas_of(self.cost_volume_on(&s, &plain)?);
+            let alpha = self.frozen_alphas_of(self.stage1_input_on(&s, &plain)?);
             let RenderInputs {
                 geom,
                 color,
                 soft,
                 target,
+                ..
             } = self.render_inputs(&s, &plain)?;
             let (soft_img, mni) = render_shared(alpha, color, &geom, soft.clone());
             let img = learned_blend(&blend, mni, soft);
@@ -785,13 +877,18 @@ impl Trainer {
     }
 }
 
-/// Stage 1's alphas, one layer per normal and plane.
+/// Stage 1's alphas, one layer per normal and plane: its output, or with the sweep prior the
+/// prior's logits corrected by its output.
 ///
 /// # Shapes
-/// `[N, 6, D, H, W]` → `[N·D, 1, H, W]`
-fn alphas_of(stage1: &Stage1, volume: Tensor<5>) -> Tensor<4> {
-    let [n, _, d, h, w] = volume.dims();
-    stage1.forward(volume).reshape([n * d, 1, h, w])
+/// `volume [N, C, D, H, W]` → `[N·D, 1, H, W]`
+pub(crate) fn alphas_of(stage1: &Stage1, input: Stage1Input) -> Tensor<4> {
+    let [n, _, d, h, w] = input.volume.dims();
+    let out = stage1.forward(input.volume).reshape([n * d, 1, h, w]);
+    match input.prior {
+        Some(p) => p.apply(out),
+        None => out,
+    }
 }
 
 /// Stage 2: the blending network's weights applied to the multi-normal images.
@@ -829,6 +926,24 @@ struct RenderInputs {
     color: Tensor<4>,
     soft: Tensor<4>,
     target: Tensor<4>,
+    /// `[1, 1, H, W]`, 1 where the reference covers the target (with `covered_loss`).
+    covered: Option<Tensor<4>>,
+}
+
+impl RenderInputs {
+    /// What the loss sees of `output` (`[B, 3, H, W]`): itself, or with a coverage mask the
+    /// target in the pixels the reference does not cover (no error, no gradient there).
+    fn scored(&self, output: Tensor<4>) -> Tensor<4> {
+        match &self.covered {
+            None => output,
+            Some(m) => {
+                let dims = output.dims();
+                let m = m.clone().expand([dims[0], 1, dims[2], dims[3]]);
+                let t = self.target.clone().expand(dims);
+                output * m.clone() + t * (m.ones_like() - m)
+            }
+        }
+    }
 }
 
 /// Header of `log.csv`.

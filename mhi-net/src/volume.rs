@@ -1,0 +1,167 @@
+//! What stage 1 sees: the oriented cost volume of a posed pair (the reference image and the
+//! source warped onto every plane of every normal) and, for a model with the sweep prior, the
+//! training-free sweep's alpha logits it corrects (docs/METHOD.md, "The learned model on the
+//! sweep prior").
+
+use burn::tensor::activation::sigmoid;
+use burn::tensor::{Device, Tensor, TensorData};
+use mhi_data::LoadedFrame;
+use mhi_geom::NormalSet;
+use mhi_render::{PlaneSweepVolume, SweepConfig, check_parallax, plane_sweep_volume, sweep_alphas};
+use serde::{Deserialize, Serialize};
+
+/// What stage 1 starts from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum Prior {
+    /// Nothing: stage 1 predicts alphas from the cost volume alone (the paper's network).
+    #[default]
+    None,
+    /// The training-free sweep: stage 1 sees its alpha logits as a seventh input channel and
+    /// predicts a residual added to them; an untrained model renders the sweep.
+    Sweep,
+}
+
+impl Prior {
+    /// Input channels per plane of stage 1 with this prior.
+    pub fn channels(self) -> usize {
+        match self {
+            Self::None => 6,
+            Self::Sweep => 7,
+        }
+    }
+}
+
+/// The sweep's alphas are clamped to `[PRIOR_EPS, 1 − PRIOR_EPS]` before their logit is taken
+/// (logits within ±6.9, where the sigmoid still has a gradient); the clamped-off remainder is
+/// added back as a constant, so a zero residual gives the sweep's alphas exactly.
+pub const PRIOR_EPS: f32 = 1e-3;
+
+/// The logit channel enters the network divided by this (the logits span ±6.9, the colours
+/// `[0, 1]`).
+pub const LOGIT_INPUT_SCALE: f32 = 5.0;
+
+/// The sweep prior of a pair as tensors on the stage-1 grid.
+#[derive(Debug, Clone)]
+pub struct SweepPrior {
+    /// `logit(clamp(α_sweep))`, `[N·D, 1, H, W]`.
+    pub logit: Tensor<4>,
+    /// `α_sweep − clamp(α_sweep)` (a constant), `[N·D, 1, H, W]`.
+    pub correction: Tensor<4>,
+}
+
+impl SweepPrior {
+    /// Alphas `σ(logit + residual) + correction`, clamped to `[0, 1]`.
+    ///
+    /// # Shapes
+    /// `residual [N·D, 1, H, W]` → `[N·D, 1, H, W]`
+    pub fn apply(&self, residual: Tensor<4>) -> Tensor<4> {
+        (sigmoid(self.logit.clone() + residual) + self.correction.clone()).clamp(0.0, 1.0)
+    }
+}
+
+/// Everything stage 1 takes for one pair.
+#[derive(Debug, Clone)]
+pub struct Stage1Input {
+    /// `[N, C, D, H, W]`: reference RGB, warped source RGB and (with the prior) the logit
+    /// channel divided by [`LOGIT_INPUT_SCALE`].
+    pub volume: Tensor<5>,
+    /// The sweep prior, when the model has one.
+    pub prior: Option<SweepPrior>,
+}
+
+/// The oriented cost volume `[N, 6, D, H, W]`: per normal and plane, the reference image and the
+/// source image warped onto that plane (zero where the plane is not visible from the source).
+pub fn cost_volume(
+    normals: &NormalSet,
+    depths: &[f64],
+    reference: &LoadedFrame,
+    source: &LoadedFrame,
+    device: &Device,
+) -> crate::Result<Tensor<5>> {
+    Ok(stage1_input(normals, depths, reference, source, None, device)?.volume)
+}
+
+/// Stage 1's input for a pair: the cost volume, and with `prior` (the sweep's constants on this
+/// image size) the sweep's logits as a seventh channel and as the base of the residual.
+pub fn stage1_input(
+    normals: &NormalSet,
+    depths: &[f64],
+    reference: &LoadedFrame,
+    source: &LoadedFrame,
+    prior: Option<&SweepConfig>,
+    device: &Device,
+) -> crate::Result<Stage1Input> {
+    let psv = plane_sweep_volume(
+        normals,
+        depths,
+        &reference.camera,
+        &source.image,
+        &source.camera,
+    )?;
+    let (n, d) = (normals.len(), depths.len());
+    let (w, h) = (
+        reference.image.width() as usize,
+        reference.image.height() as usize,
+    );
+    let px = w * h;
+    let sweep = match prior {
+        Some(cfg) => {
+            check_parallax(&reference.camera, &source.camera, depths)?;
+            Some(sweep_alphas(&psv, &reference.image, cfg)?)
+        }
+        None => None,
+    };
+    let channels = if sweep.is_some() { 7 } else { 6 };
+    let volume = fill_volume(&psv, &reference.image, sweep.as_deref());
+    let volume = Tensor::from_data(TensorData::new(volume, [n, channels, d, h, w]), device);
+    let prior = sweep.map(|alpha| {
+        let mut logit = vec![0.0_f32; n * d * px];
+        let mut correction = vec![0.0_f32; n * d * px];
+        for (k, &a) in alpha.iter().enumerate() {
+            let c = a.clamp(PRIOR_EPS, 1.0 - PRIOR_EPS);
+            logit[k] = (c / (1.0 - c)).ln();
+            correction[k] = a - c;
+        }
+        let t = |v: Vec<f32>| Tensor::from_data(TensorData::new(v, [n * d, 1, h, w]), device);
+        SweepPrior {
+            logit: t(logit),
+            correction: t(correction),
+        }
+    });
+    Ok(Stage1Input { volume, prior })
+}
+
+/// `[N, C, D, H·W]` as a flat vector: reference RGB, warped RGB, then (C = 7, with `sweep`) the
+/// logit of the clamped sweep alpha over [`LOGIT_INPUT_SCALE`].
+fn fill_volume(
+    psv: &PlaneSweepVolume,
+    reference: &image::Rgb32FImage,
+    sweep: Option<&[f32]>,
+) -> Vec<f32> {
+    let (n, d) = (psv.n, psv.d);
+    let px = psv.width as usize * psv.height as usize;
+    let channels = if sweep.is_some() { 7 } else { 6 };
+    let refp = reference.as_raw();
+    let mut data = vec![0.0_f32; n * channels * d * px];
+    for i in 0..n {
+        for j in 0..d {
+            let at = |c: usize| ((i * channels + c) * d + j) * px;
+            let src = psv.plane_rgb(i, j);
+            for c in 0..3 {
+                let (r, s) = (at(c), at(c + 3));
+                for p in 0..px {
+                    data[r + p] = refp[3 * p + c];
+                    data[s + p] = src[3 * p + c];
+                }
+            }
+            if let Some(alpha) = sweep {
+                let dst = &mut data[at(6)..][..px];
+                for (v, &a) in dst.iter_mut().zip(&alpha[(i * d + j) * px..][..px]) {
+                    let c = a.clamp(PRIOR_EPS, 1.0 - PRIOR_EPS);
+                    *v = (c / (1.0 - c)).ln() / LOGIT_INPUT_SCALE;
+                }
+            }
+        }
+    }
+    data
+}

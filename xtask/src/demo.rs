@@ -116,7 +116,10 @@ pub fn demo(a: &DemoArgs) -> anyhow::Result<()> {
         a,
         &["--normals", "1", "--phase2-steps", "0"],
     )?;
-    stage(5, "evaluating every method on the synthetic test scenes");
+    stage(
+        5,
+        "evaluating every method (and the pretrained model) on the synthetic test scenes",
+    );
     let mut args = vec![
         "--data".to_string(),
         s(&a.data),
@@ -136,6 +139,15 @@ pub fn demo(a: &DemoArgs) -> anyhow::Result<()> {
     ];
     if let Some(c) = &a.cache {
         args.extend(["--cache".into(), s(c)]);
+    }
+    // The pretrained model beside the short runs (its own N and D; compared with the sweep of
+    // the same N and D in the report).
+    match crate::models::pretrained() {
+        Some(p) => args.extend(["--run".into(), s(&p)]),
+        None => println!(
+            "  no pretrained model at {}; the report shows the short runs only",
+            crate::models::pretrained_dir().display()
+        ),
     }
     crate::eval::eval(&parse::<EvalArgs>(&args)?)?;
     println!(

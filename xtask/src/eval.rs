@@ -23,7 +23,7 @@ use mhi_render::{
 };
 use serde::Serialize;
 
-use crate::views::{clipped, combine, enlarge, factor_for, layer_picture, strip};
+use crate::views::{clipped, combine, enlarge, factor_for, layer_picture, render_mni, strip};
 
 /// A method `cargo xtask eval` can score.
 #[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
@@ -77,9 +77,12 @@ pub struct EvalArgs {
     #[arg(long, default_value_t = 0)]
     pub bootstrap_seed: u64,
     /// A trained run (repeat for several): N > 1 gives `learned`, `soft`, `hard` and `avg`;
-    /// N = 1 gives `mpi`.
+    /// N = 1 gives `mpi`. Default: the pretrained model in `models/` when there is one.
     #[arg(long = "run")]
     pub runs: Vec<PathBuf>,
+    /// Do not fall back to the pretrained model when no --run is given.
+    #[arg(long)]
+    pub no_pretrained: bool,
     /// Methods to score (comma-separated); `learned`/`soft`/`hard`/`avg`/`mpi` need a --run,
     /// `oracle` synthetic scenes.
     #[arg(
@@ -90,7 +93,11 @@ pub struct EvalArgs {
     )]
     pub methods: Vec<Method>,
     /// (N, D) configurations of the training-free sweep, as NxD (N in 1, 2, 3, 5).
-    #[arg(long, value_delimiter = ',', default_value = "1x8,5x8,1x32,5x32")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "1x8,5x8,1x16,5x16,1x32,5x32"
+    )]
     pub sweep_grid: Vec<String>,
     /// Radius of the sweep's photo-consistency window (chosen on validation sequences; see
     /// README).
@@ -133,6 +140,24 @@ pub struct EvalArgs {
     /// Weights cache for LPIPS (default: $MHI_CACHE, else ~/.cache/mhi); see `cargo xtask weights`.
     #[arg(long)]
     pub cache: Option<PathBuf>,
+    /// Score exact renders. By default every MHI is rendered leaving out what the view does not
+    /// need within --budget (the report's pruned-vs-exact table measures what that changes).
+    #[arg(long)]
+    pub exact: bool,
+    /// The error budget of a pruned render, in 8-bit levels per pixel (1 = 1/255).
+    #[arg(long, default_value_t = 1.0)]
+    pub budget: f32,
+}
+
+impl EvalArgs {
+    /// The render plan of the scored images.
+    pub fn prune(&self) -> Prune {
+        if self.exact {
+            Prune::NONE
+        } else {
+            Prune::with_budget(self.budget / 255.0)
+        }
+    }
 }
 
 /// The evaluation size of frames of `dims`: `short` pixels on the short side, the long side in
@@ -175,6 +200,17 @@ struct Output {
     planes: usize,
     image: Rgb32FImage,
     times: Times,
+    /// The same MHI rendered exactly, when `image` was rendered pruned.
+    exact: Option<ExactCheck>,
+}
+
+/// An exact render beside a pruned one of the same MHI and view.
+struct ExactCheck {
+    image: Rgb32FImage,
+    /// Time of the exact render (the pruned one's is in `times`).
+    render_ms: f64,
+    /// What the pruned render left out.
+    stats: mhi_render::RenderStats,
 }
 
 #[derive(Serialize)]
@@ -259,7 +295,20 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     }
     let cpu = Device::flex();
     let mut models = Vec::new();
-    for run in &a.runs {
+    let mut runs = a.runs.clone();
+    if runs.is_empty() && !a.no_pretrained {
+        let needs_run = [Method::Learned, Method::Soft, Method::Hard, Method::Avg]
+            .iter()
+            .any(|m| a.methods.contains(m));
+        if let Some(p) = crate::models::pretrained().filter(|_| needs_run) {
+            println!(
+                "using the pretrained model {} (--run chooses another, --no-pretrained none)",
+                p.display()
+            );
+            runs.push(p);
+        }
+    }
+    for run in &runs {
         let model = Model::load(run, cpu.clone())
             .with_context(|| format!("loading the trained run {}", run.display()))?;
         models.push(Loaded {
@@ -365,6 +414,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     };
     let pb = crate::progress::bar(index.triplets.len() as u64 + 1, "eval");
     let mut measurements: Vec<Measurement> = Vec::new();
+    let mut pruning: Vec<PruneMeasure> = Vec::new();
     let mut sample_md = String::new();
     let mut sizes_used = Vec::new();
     for (ti, t) in index.triplets.iter().enumerate() {
@@ -434,6 +484,9 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
                 covered_fraction,
                 times: o.times,
             });
+            if let Some(e) = &o.exact {
+                pruning.push(PruneMeasure::new(o, e, &img, gt, &covered)?);
+            }
         }
         if ti < a.samples {
             sample_md.push_str(&write_samples(
@@ -507,10 +560,17 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         measurements: &measurements,
     })?;
     mhi_data::write_atomic(&a.out.join("report.json"), &json)?;
+    let prune_rows = prune_rows(&pruning, &boot);
+    mhi_data::write_atomic(
+        &a.out.join("pruning.json"),
+        &serde_json::to_vec_pretty(&serde_json::json!({
+            "budget": a.prune().budget, "rows": prune_rows, "measurements": pruning,
+        }))?,
+    )?;
     mhi_data::write_atomic(&a.out.join("report.csv"), report::csv(&rows).as_bytes())?;
 
     // Figures, from the rows.
-    let points: Vec<TimePoint> = rows
+    let mut points: Vec<TimePoint> = rows
         .iter()
         .filter(|r| r.bin == "all" && r.kind == "all")
         .map(|r| TimePoint {
@@ -519,6 +579,20 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             psnr: r.psnr_covered.unwrap_or(r.psnr),
         })
         .collect();
+    // The same MHIs rendered exactly: a separate series, beside the pruned (default) renders.
+    for p in &prune_rows {
+        if let Some(r) = rows.iter().find(|r| {
+            r.bin == "all"
+                && r.kind == "all"
+                && (&r.method, r.normals, r.planes) == (&p.method, p.normals, p.planes)
+        }) {
+            points.push(TimePoint {
+                label: format!("{} exact", config_label(&p.method, p.normals, p.planes)),
+                ms: r.ms_per_view - p.ms_pruned + p.ms_exact,
+                psnr: p.psnr_exact,
+            });
+        }
+    }
     mhi_eval::plot::error_vs_time(
         &a.out.join("error_vs_time"),
         &points,
@@ -546,10 +620,193 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         a,
         &models,
     );
+    let md = md + &prune_markdown(&prune_rows, a);
     mhi_data::write_atomic(&a.out.join("report.md"), md.as_bytes())?;
     print_summary(&rows, &comparisons);
     println!("report: {}", a.out.join("report.md").display());
     Ok(())
+}
+
+/// One pruned render against the exact render of the same MHI and view.
+#[derive(Serialize)]
+struct PruneMeasure {
+    method: String,
+    normals: usize,
+    planes: usize,
+    /// Largest |pruned − exact| over pixels and channels (colour units).
+    max_abs: f32,
+    /// Mean |pruned − exact|.
+    mean_abs: f64,
+    /// Pixels whose change exceeds the bound the render reported (must be 0).
+    over_bound: usize,
+    /// Covered PSNR against the ground truth, pruned and exact (None without covered pixels).
+    psnr_pruned: Option<f64>,
+    psnr_exact: Option<f64>,
+    ms_pruned: f64,
+    ms_exact: f64,
+    layers: usize,
+    layers_pruned: usize,
+    normals_pruned: usize,
+    bound: f32,
+}
+
+impl PruneMeasure {
+    fn new(
+        o: &Output,
+        e: &ExactCheck,
+        pruned: &Rgb32FImage,
+        gt: &Rgb32FImage,
+        covered: &[bool],
+    ) -> anyhow::Result<Self> {
+        let exact = clipped(&e.image);
+        let (mut max_abs, mut sum, mut over) = (0.0_f32, 0.0_f64, 0usize);
+        for (p, q) in pruned.pixels().zip(exact.pixels()) {
+            let d = (0..3)
+                .map(|c| (p.0[c] - q.0[c]).abs())
+                .fold(0.0_f32, f32::max);
+            max_abs = max_abs.max(d);
+            sum += (0..3)
+                .map(|c| f64::from((p.0[c] - q.0[c]).abs()))
+                .sum::<f64>();
+            if d > e.stats.bound + 1e-5 {
+                over += 1;
+            }
+        }
+        Ok(Self {
+            method: o.method.clone(),
+            normals: o.normals,
+            planes: o.planes,
+            max_abs,
+            mean_abs: sum / (3 * pruned.width() as usize * pruned.height() as usize).max(1) as f64,
+            over_bound: over,
+            psnr_pruned: mhi_eval::psnr_masked(pruned, gt, covered)?,
+            psnr_exact: mhi_eval::psnr_masked(&exact, gt, covered)?,
+            ms_pruned: o.times.render_ms + o.times.blend_ms,
+            ms_exact: e.render_ms + o.times.blend_ms,
+            layers: e.stats.layers,
+            layers_pruned: e.stats.layers_pruned,
+            normals_pruned: e.stats.normals_pruned,
+            bound: e.stats.bound,
+        })
+    }
+}
+
+/// Pruned against exact, per method and configuration over every triplet.
+#[derive(Serialize)]
+struct PruneRow {
+    method: String,
+    normals: usize,
+    planes: usize,
+    views: usize,
+    max_abs: f32,
+    mean_abs: f64,
+    over_bound: usize,
+    bound: f32,
+    psnr_pruned: f64,
+    psnr_exact: f64,
+    /// Mean covered-PSNR change (pruned − exact) with its 95 % interval (None when a PSNR is
+    /// infinite: identical images).
+    delta_psnr: Option<(f64, [f64; 2])>,
+    ms_pruned: f64,
+    ms_exact: f64,
+    /// Total exact render time over total pruned render time.
+    speedup: f64,
+    layers: usize,
+    layers_pruned: f64,
+    normals_pruned: f64,
+}
+
+fn prune_rows(ms_: &[PruneMeasure], boot: &Bootstrap) -> Vec<PruneRow> {
+    let mut keys: Vec<(String, usize, usize)> = Vec::new();
+    for m in ms_ {
+        let k = (m.method.clone(), m.normals, m.planes);
+        if !keys.contains(&k) {
+            keys.push(k);
+        }
+    }
+    keys.into_iter()
+        .map(|(method, normals, planes)| {
+            let g: Vec<&PruneMeasure> = ms_
+                .iter()
+                .filter(|m| {
+                    (m.method.as_str(), m.normals, m.planes) == (method.as_str(), normals, planes)
+                })
+                .collect();
+            let k = g.len().max(1) as f64;
+            let mean = |f: &dyn Fn(&PruneMeasure) -> f64| g.iter().map(|m| f(m)).sum::<f64>() / k;
+            let pairs: Vec<(f64, f64)> = g
+                .iter()
+                .filter_map(|m| Some((m.psnr_pruned?, m.psnr_exact?)))
+                .filter(|(p, e)| p.is_finite() && e.is_finite())
+                .collect();
+            let deltas: Vec<f64> = pairs.iter().map(|(p, e)| p - e).collect();
+            let kp = pairs.len().max(1) as f64;
+            let (ms_pruned, ms_exact) = (mean(&|m| m.ms_pruned), mean(&|m| m.ms_exact));
+            PruneRow {
+                views: g.len(),
+                max_abs: g.iter().map(|m| m.max_abs).fold(0.0, f32::max),
+                mean_abs: mean(&|m| m.mean_abs),
+                over_bound: g.iter().map(|m| m.over_bound).sum(),
+                bound: g.iter().map(|m| m.bound).fold(0.0, f32::max),
+                psnr_pruned: pairs.iter().map(|p| p.0).sum::<f64>() / kp,
+                psnr_exact: pairs.iter().map(|p| p.1).sum::<f64>() / kp,
+                delta_psnr: boot.mean_ci(&deltas),
+                ms_pruned,
+                ms_exact,
+                speedup: ms_exact / ms_pruned.max(1e-9),
+                layers: g.first().map_or(0, |m| m.layers),
+                layers_pruned: mean(&|m| m.layers_pruned as f64),
+                normals_pruned: mean(&|m| m.normals_pruned as f64),
+                method,
+                normals,
+                planes,
+            }
+        })
+        .collect()
+}
+
+fn prune_markdown(rows: &[PruneRow], a: &EvalArgs) -> String {
+    let mut s = String::from(
+        "## Leaving out what a view does not need: pruned against exact
+
+",
+    );
+    if a.exact {
+        s += "Not measured: this report was made with `--exact` (every render exact).
+
+";
+        return s;
+    }
+    let _ = writeln!(
+        s,
+        "Every MHI below was rendered twice per view, exactly and within the error budget of {:.2} 8-bit level(s) per pixel (the default; `--exact` turns it off). |Δ| compares the two renders (not the ground truth); ΔPSNR is the change of covered PSNR against the ground truth (mean, 95 % interval); time is the render (and Soft blend) alone; layers and normals are those left out per view. The report's other tables score the pruned renders.\n",
+        a.budget
+    );
+    s += "| method | views | max \\|Δ\\| | mean \\|Δ\\| | bound | pixels over bound | ΔPSNR dB | exact ms | pruned ms | speed-up | layers left out | normals left out |\n|---|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|\n";
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.5} | {:.6} | {:.5} | {} | {} | {:.1} | {:.1} | {:.2}x | {:.1} of {} | {:.2} of {} |",
+            config_label(&r.method, r.normals, r.planes),
+            r.views,
+            r.max_abs,
+            r.mean_abs,
+            r.bound,
+            r.over_bound,
+            r.delta_psnr.map_or("-".into(), |(m, [lo, hi])| format!(
+                "{m:+.3} [{lo:+.3}, {hi:+.3}]"
+            )),
+            r.ms_exact,
+            r.ms_pruned,
+            r.speedup,
+            r.layers_pruned,
+            r.layers,
+            r.normals_pruned,
+            r.normals
+        );
+    }
+    s.push('\n');
+    s
 }
 
 fn size_label(sizes: &[(u32, u32)]) -> String {
@@ -625,6 +882,7 @@ fn blended(
             blend_ms: ms(t0),
             ..base
         },
+        exact: None,
     }
 }
 
@@ -671,6 +929,7 @@ impl Ctx<'_> {
                     blend_ms: ms(t0),
                     ..Times::default()
                 },
+                exact: None,
             });
         }
         for m in self.models {
@@ -693,14 +952,14 @@ impl Ctx<'_> {
             }
             let d = model.depths().len();
             let t0 = Instant::now();
-            let volume = model.cost_volume(rf, sf)?;
+            let volume = model.stage1_input(rf, sf)?;
             let volume_ms = ms(t0);
             let t1 = Instant::now();
             let alphas = model.alphas(volume)?;
             let network_ms = ms(t1);
             let t2 = Instant::now();
             let mhi = model.mhi(rf, alphas)?;
-            let r = render_mni(&mhi, &tf.camera)?;
+            let r = render_mni(&mhi, &tf.camera, a.prune())?;
             let render_ms = ms(t2);
             let base = Times {
                 volume_ms,
@@ -715,6 +974,7 @@ impl Ctx<'_> {
                     planes: d,
                     image: r.multi_normal[0].clone(),
                     times: base,
+                    exact: None,
                 });
                 continue;
             }
@@ -736,7 +996,19 @@ impl Ctx<'_> {
                 }
                 let t3 = Instant::now();
                 let w = heuristic_weights_for(model.normals(), &rf.camera, &tf.camera, h);
-                out.push(blended(name, n, d, combine(mni, &w), base, t3));
+                let mut o = blended(name, n, d, combine(mni, &w), base, t3);
+                if which == Method::Soft && a.prune().budget > 0.0 {
+                    // The same MHI's multi-normal images rendered exactly, Soft-blended.
+                    let t4 = Instant::now();
+                    let e = render_mni(&mhi, &tf.camera, Prune::NONE)?;
+                    let render_ms = ms(t4);
+                    o.exact = Some(ExactCheck {
+                        image: combine(&e.multi_normal, &w),
+                        render_ms,
+                        stats: r.stats,
+                    });
+                }
+                out.push(o);
             }
         }
         for &(n, d) in self.sweep_grid {
@@ -753,7 +1025,7 @@ impl Ctx<'_> {
                 &self.sweep_config,
             )?;
             let volume_ms = ms(t0);
-            let (image, render_ms, blend_ms) = render_soft(&mhi, tf)?;
+            let (image, render_ms, exact) = render_soft(&mhi, tf, a.prune())?;
             out.push(Output {
                 method: "sweep".into(),
                 normals: n,
@@ -763,8 +1035,9 @@ impl Ctx<'_> {
                     volume_ms,
                     network_ms: 0.0,
                     render_ms,
-                    blend_ms,
+                    blend_ms: 0.0,
                 },
+                exact,
             });
         }
         if !self.oracle_grid.is_empty() {
@@ -781,7 +1054,7 @@ impl Ctx<'_> {
                     LayerColor::Shared(rf.image.clone()),
                     alpha,
                 )?;
-                let (image, render_ms, blend_ms) = render_soft(&mhi, tf)?;
+                let (image, render_ms, exact) = render_soft(&mhi, tf, a.prune())?;
                 out.push(Output {
                     method: "oracle".into(),
                     normals: n,
@@ -789,9 +1062,9 @@ impl Ctx<'_> {
                     image,
                     times: Times {
                         render_ms,
-                        blend_ms,
                         ..Times::default()
                     },
+                    exact,
                 });
             }
         }
@@ -799,33 +1072,41 @@ impl Ctx<'_> {
     }
 }
 
-/// The N multi-normal images of a view, exactly (no pruning).
-pub fn render_mni(mhi: &Mhi, camera: &mhi_geom::Camera) -> anyhow::Result<mhi_render::Rendered> {
-    Ok(render(
-        mhi,
-        camera,
-        &RenderOptions {
-            blend: Blend::Heuristic(BlendHeuristic::Avg),
-            prune: Prune::NONE,
-            keep_multi_normal: true,
-        },
-    )?)
-}
-
-/// Render the multi-normal images, then blend them with Soft (timed apart).
-fn render_soft(mhi: &Mhi, tf: &LoadedFrame) -> anyhow::Result<(Rgb32FImage, f64, f64)> {
-    let t0 = Instant::now();
-    let r = render_mni(mhi, &tf.camera)?;
-    let render_ms = ms(t0);
-    let t1 = Instant::now();
-    let w = heuristic_weights_for(
-        mhi.normals(),
-        mhi.reference(),
-        &tf.camera,
-        BlendHeuristic::Soft,
-    );
-    let image = combine(&r.multi_normal, &w);
-    Ok((image, render_ms, ms(t1)))
+/// Render with Soft blending within `prune` (timed) and, when something may be left out, also
+/// exactly (timed) for the pruned-vs-exact table. Returns the image to score (the pruned one),
+/// its render time and the exact check.
+fn render_soft(
+    mhi: &Mhi,
+    tf: &LoadedFrame,
+    prune: Prune,
+) -> anyhow::Result<(Rgb32FImage, f64, Option<ExactCheck>)> {
+    let go = |p: Prune| -> anyhow::Result<(mhi_render::Rendered, f64)> {
+        let t0 = Instant::now();
+        let r = render(
+            mhi,
+            &tf.camera,
+            &RenderOptions {
+                blend: Blend::Heuristic(BlendHeuristic::Soft),
+                prune: p,
+                keep_multi_normal: false,
+            },
+        )?;
+        Ok((r, ms(t0)))
+    };
+    let (exact, exact_ms) = go(Prune::NONE)?;
+    if prune.budget <= 0.0 {
+        return Ok((exact.image, exact_ms, None));
+    }
+    let (pruned, pruned_ms) = go(prune)?;
+    Ok((
+        pruned.image,
+        pruned_ms,
+        Some(ExactCheck {
+            image: exact.image,
+            render_ms: exact_ms,
+            stats: pruned.stats,
+        }),
+    ))
 }
 
 fn ms(t: Instant) -> f64 {
@@ -953,7 +1234,7 @@ fn write_layers_and_orbit(
         .or(models.first());
     let (mhi, learned) = match model {
         Some(m) => {
-            let alphas = m.model.alphas(m.model.cost_volume(rf, sf)?)?;
+            let alphas = m.model.alphas(m.model.stage1_input(rf, sf)?)?;
             (m.model.mhi(rf, alphas)?, Some(&m.model))
         }
         None => (
@@ -984,7 +1265,7 @@ fn write_layers_and_orbit(
             .collect();
         mhi_data::write_png(&dir.join(format!("normal_{i}.png")), &strip(&tiles))?;
     }
-    let r = render_mni(&mhi, &tf.camera)?;
+    let r = render_mni(&mhi, &tf.camera, Prune::NONE)?;
     let soft = heuristic_weights_for(mhi.normals(), &rf.camera, &tf.camera, BlendHeuristic::Soft);
     let weights = match learned {
         Some(m) if mhi.n() > 1 => m.blend_weights(&r.multi_normal, &soft)?,
@@ -1013,13 +1294,7 @@ fn write_layers_and_orbit(
         let cams = crate::views::orbit(&rf.camera, 0.5 * baseline, a.orbit_frames)?;
         let mut frames = Vec::new();
         for c in &cams {
-            let r = render_mni(&mhi, c)?;
-            let soft = heuristic_weights_for(mhi.normals(), &rf.camera, c, BlendHeuristic::Soft);
-            let wts = match learned {
-                Some(m) if mhi.n() > 1 => m.blend_weights(&r.multi_normal, &soft)?,
-                _ => soft,
-            };
-            let img = combine(&r.multi_normal, &wts);
+            let (img, _) = crate::views::view(&mhi, learned, c, a.prune())?;
             frames.push(enlarge(
                 &mhi_data::to_u8(&clipped(&img)),
                 factor_for(img.width(), 256),

@@ -6,6 +6,7 @@ mod demo;
 mod eval;
 mod experiments;
 mod metrics;
+mod models;
 mod ops;
 mod progress;
 mod render;

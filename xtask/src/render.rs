@@ -9,13 +9,12 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use burn::tensor::Device;
 use clap::Args;
-use image::Rgb32FImage;
-use mhi_data::{CameraFile, Fit, Frame, LoadedFrame, load_frame};
+use mhi_data::{CameraFile, Fit, Frame, load_frame};
 use mhi_geom::{BlendHeuristic, Camera, depths_linear_in_disparity};
 use mhi_net::Model;
-use mhi_render::{Mhi, SweepConfig, heuristic_weights_for, sweep_mhi};
+use mhi_render::{Prune, SweepConfig, heuristic_weights_for, sweep_mhi};
 
-use crate::views::{clipped, combine, enlarge, factor_for, orbit, write_gif};
+use crate::views::{clipped, enlarge, factor_for, orbit, view, write_gif};
 
 /// Options of `cargo xtask render`.
 #[derive(Args, Debug)]
@@ -38,15 +37,19 @@ pub struct RenderArgs {
     /// Camera row (1-based) of the source photo.
     #[arg(long, default_value_t = 2)]
     pub src_row: usize,
-    /// A trained run (its latest checkpoint): stage 1 and the learned blend. Without it the
-    /// training-free plane-sweep MHI with Soft blending is used.
-    #[arg(long)]
+    /// A trained run (its latest checkpoint): stage 1 and the learned blend. Default: the
+    /// pretrained model in `models/` (see its MODEL.md), or the sweep when there is none.
+    #[arg(long, conflicts_with = "sweep")]
     pub run: Option<PathBuf>,
+    /// Use the training-free plane-sweep MHI with Soft blending (--normals, --planes, --near,
+    /// --far) instead of a trained model.
+    #[arg(long)]
+    pub sweep: bool,
     /// Working size WIDTHxHEIGHT (photos are resized, intrinsics follow; multiples of 4 for a
     /// run). Default: the reference photo's aspect with its longer side 256 (multiples of 4).
     #[arg(long, value_parser = crate::data::parse_size)]
     pub size: Option<(u32, u32)>,
-    /// Normals of the sweep MHI (1, 2, 3 or 5).
+    /// Normals of the sweep MHI (1, 2, 3 or 5; with --sweep or without a model).
     #[arg(long, default_value_t = 5, value_parser = crate::data::parse_normals)]
     pub normals: usize,
     /// Planes per normal of the sweep MHI.
@@ -70,6 +73,18 @@ pub struct RenderArgs {
     /// Replace images already in --out.
     #[arg(long)]
     pub overwrite: bool,
+    /// Render everything: leave nothing out (by default what the views do not need is left out
+    /// within --budget; see plan.json).
+    #[arg(long)]
+    pub exact: bool,
+    /// The error budget, in 8-bit levels per pixel: the most that everything left out may
+    /// change any pixel (1 = 1/255).
+    #[arg(long, default_value_t = 1.0)]
+    pub budget: f32,
+    /// Print the scene plan: what the views do not need (normals, layers, depth range), why,
+    /// the bound kept, and the MHI's size before and after (it is written to plan.json too).
+    #[arg(long)]
+    pub explain: bool,
 }
 
 /// `cargo xtask render`.
@@ -114,7 +129,25 @@ pub fn render(a: &RenderArgs) -> anyhow::Result<()> {
             a.out.display()
         );
     }
-    let learned: Option<Model> = match &a.run {
+    let run = match (&a.run, a.sweep) {
+        (Some(r), _) => Some(r.clone()),
+        (None, true) => None,
+        (None, false) => {
+            let p = crate::models::pretrained();
+            match &p {
+                Some(d) => println!(
+                    "using the pretrained model {} (--run chooses another, --sweep the training-free sweep)",
+                    d.display()
+                ),
+                None => println!(
+                    "no pretrained model at {}; using the training-free sweep",
+                    crate::models::pretrained_dir().display()
+                ),
+            }
+            p
+        }
+    };
+    let learned: Option<Model> = match &run {
         Some(run) => Some(
             Model::load(run, Device::flex())
                 .with_context(|| format!("loading the trained run {}", run.display()))?,
@@ -122,11 +155,16 @@ pub fn render(a: &RenderArgs) -> anyhow::Result<()> {
         None => None,
     };
     let ref_rgb = mhi_data::read_rgb(&a.reference)?;
+    // A model's U-Nets need sides divisible by its multiple; the sweep by nothing (4 kept).
+    let multiple = learned
+        .as_ref()
+        .map_or(4, |m| m.config().size_multiple().max(4) as u32);
     let size = a.size.unwrap_or_else(|| {
         let (w, h) = ref_rgb.dimensions();
         let s = 256.0 / f64::from(w.max(h));
-        let r4 = |x: u32| ((f64::from(x) * s / 4.0).round() as u32).max(1) * 4;
-        (r4(w), r4(h))
+        let r =
+            |x: u32| ((f64::from(x) * s / f64::from(multiple)).round() as u32).max(1) * multiple;
+        (r(w), r(h))
     });
     if let Some(m) = &learned {
         m.check_size(size.0, size.1)?;
@@ -149,7 +187,7 @@ pub fn render(a: &RenderArgs) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let (mhi, model) = match &learned {
         Some(m) => {
-            let alphas = m.alphas(m.cost_volume(&rf, &sf)?)?;
+            let alphas = m.alphas(m.stage1_input(&rf, &sf)?)?;
             (m.mhi(&rf, alphas)?, Some(m))
         }
         None => (
@@ -160,7 +198,7 @@ pub fn render(a: &RenderArgs) -> anyhow::Result<()> {
                 &rf.image,
                 &sf.camera,
                 &sf.image,
-                &SweepConfig::default(),
+                &SweepConfig::for_short_side(size.0.min(size.1)),
             )?,
             None,
         ),
@@ -192,18 +230,65 @@ pub fn render(a: &RenderArgs) -> anyhow::Result<()> {
             Ok((k + 1, cam))
         })
         .collect::<anyhow::Result<_>>()?;
+    let baseline = (rf.camera.center_in_world() - sf.camera.center_in_world()).length();
+    let orbit_cams = if a.orbit_frames > 0 {
+        orbit(&rf.camera, a.orbit_radius * baseline, a.orbit_frames)?
+    } else {
+        Vec::new()
+    };
+    if !(a.budget.is_finite() && a.budget >= 0.0 && a.budget <= 255.0) {
+        bail!(
+            "--budget {} must be a number of 8-bit levels in [0, 255] (1 by default)",
+            a.budget
+        );
+    }
+    let prune = if a.exact {
+        Prune::NONE
+    } else {
+        Prune::with_budget(a.budget / 255.0)
+    };
+    // What the views need: Soft weights for the sweep; a learned blend comes after the
+    // multi-normal images, so no normal is left out for it (Avg weights say so).
+    let heuristic = match model {
+        Some(_) if mhi.n() > 1 => BlendHeuristic::Avg,
+        _ => BlendHeuristic::Soft,
+    };
+    let all_cams: Vec<&Camera> = targets.iter().map(|(_, c)| c).chain(&orbit_cams).collect();
+    let weights: Vec<Vec<f32>> = all_cams
+        .iter()
+        .map(|c| heuristic_weights_for(mhi.normals(), &rf.camera, c, heuristic))
+        .collect();
+    let views: Vec<(&Camera, &[f32])> = all_cams
+        .iter()
+        .zip(&weights)
+        .map(|(c, w)| (*c, w.as_slice()))
+        .collect();
+    let plan = mhi_render::plan::analyse(&mhi, &views, prune)?;
+    mhi_data::write_atomic(
+        &a.out.join("plan.json"),
+        &serde_json::to_vec_pretty(&serde_json::json!({
+            "exact": a.exact,
+            "blend": if heuristic == BlendHeuristic::Avg { "learned (no normal left out: its weights come after the multi-normal images)" } else { "Soft" },
+            "plan": plan,
+        }))?,
+    )?;
+    if a.explain {
+        println!("{}", plan.explain());
+    }
     let pb = crate::progress::bar((targets.len() + a.orbit_frames) as u64, "render");
+    let mut worst_bound = 0.0_f32;
     for (row, cam) in &targets {
-        let img = view(&mhi, model, &rf, cam)?;
+        let (img, stats) = view(&mhi, model, cam, prune)?;
+        worst_bound = worst_bound.max(stats.bound);
         let path = a.out.join(format!("view_row{row:03}.png"));
         mhi_data::write_png(&path, &mhi_data::to_u8(&clipped(&img)))?;
         pb.inc(1);
     }
     if a.orbit_frames > 0 {
-        let baseline = (rf.camera.center_in_world() - sf.camera.center_in_world()).length();
         let mut frames = Vec::new();
-        for cam in orbit(&rf.camera, a.orbit_radius * baseline, a.orbit_frames)? {
-            let img = view(&mhi, model, &rf, &cam)?;
+        for cam in &orbit_cams {
+            let (img, stats) = view(&mhi, model, cam, prune)?;
+            worst_bound = worst_bound.max(stats.bound);
             frames.push(enlarge(
                 &mhi_data::to_u8(&clipped(&img)),
                 factor_for(img.width(), 256),
@@ -214,30 +299,23 @@ pub fn render(a: &RenderArgs) -> anyhow::Result<()> {
     }
     pb.finish_and_clear();
     println!(
-        "{} view(s){} in {}",
+        "{} view(s){} in {}; {}",
         targets.len(),
         if a.orbit_frames > 0 {
             " and orbit.gif"
         } else {
             ""
         },
-        a.out.display()
+        a.out.display(),
+        if a.exact {
+            "rendered exactly (--exact)".to_string()
+        } else {
+            format!(
+                "no pixel moved by more than {:.2} 8-bit levels from what was left out (budget {}; --exact renders everything, --explain says what was left out)",
+                worst_bound * 255.0,
+                a.budget
+            )
+        }
     );
     Ok(())
-}
-
-/// One novel view: the multi-normal images, blended by the learned network or by Soft.
-fn view(
-    mhi: &Mhi,
-    model: Option<&Model>,
-    rf: &LoadedFrame,
-    cam: &Camera,
-) -> anyhow::Result<Rgb32FImage> {
-    let r = crate::eval::render_mni(mhi, cam)?;
-    let soft = heuristic_weights_for(mhi.normals(), &rf.camera, cam, BlendHeuristic::Soft);
-    let w = match model {
-        Some(m) if mhi.n() > 1 => m.blend_weights(&r.multi_normal, &soft)?,
-        _ => soft,
-    };
-    Ok(combine(&r.multi_normal, &w))
 }

@@ -119,10 +119,11 @@ fn time_one(
                 config.planes = d;
                 let model = Model::untrained(config, Device::flex())?;
                 median_ms(runs, || {
-                    let v = model.cost_volume(&rf, &sf).expect("bench pair");
+                    let v = model.stage1_input(&rf, &sf).expect("bench pair");
                     let a = model.alphas(v).expect("finite alphas");
                     let mhi = model.mhi(&rf, a).expect("valid MHI");
-                    let r = crate::eval::render_mni(&mhi, &target).expect("bench scene");
+                    let r = crate::views::render_mni(&mhi, &target, mhi_render::Prune::NONE)
+                        .expect("bench scene");
                     let soft = mhi_render::heuristic_weights_for(
                         model.normals(),
                         &rf.camera,

@@ -10,6 +10,15 @@ use mhi_data::DataSource;
 use mhi_net::loss::TrainLoss;
 use mhi_net::{TrainConfig, Trainer};
 
+/// What stage 1 starts from (`--prior`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PriorArg {
+    /// Residuals on the training-free sweep and on Soft.
+    Sweep,
+    /// The paper's network without a prior.
+    None,
+}
+
 /// Options of `cargo xtask train`.
 #[derive(Args, Debug)]
 pub struct TrainArgs {
@@ -39,12 +48,23 @@ pub struct TrainArgs {
     /// Planes per normal.
     #[arg(long, default_value_t = 8)]
     pub planes: usize,
+    /// What stage 1 starts from. `sweep`: it corrects the training-free sweep's alpha logits
+    /// and the blending network the log Soft weights, both with zero-initialised residuals, and
+    /// the loss scores covered pixels only (an untrained model renders the sweep blended with
+    /// Soft). `none`: the paper's network, alphas from the cost volume alone.
+    #[arg(long, value_enum, default_value_t = PriorArg::Sweep)]
+    pub prior: PriorArg,
     /// Training resolution WIDTHxHEIGHT (divisible by 4).
     #[arg(long, default_value = "64x64", value_parser = crate::data::parse_size)]
     pub size: (u32, u32),
     /// Channels of the first level of the stage-1 3D U-Net.
     #[arg(long, default_value_t = 8)]
     pub width: usize,
+    /// Run the stage-1 U-Net on the cost volume averaged over SCALE × SCALE pixel blocks and
+    /// upsample its output (1: full resolution). With the sweep prior only the residual is
+    /// coarse; the prior keeps full detail. About SCALE² times cheaper.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8))]
+    pub stage1_scale: u32,
     /// Channels of the first level of the blending U-Net.
     #[arg(long, default_value_t = 16)]
     pub blend_width: usize,
@@ -165,6 +185,7 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         let mut c = TrainConfig::for_normals(a.normals);
         c.stage1.unet.width = a.width;
         c.stage1.share_weights = !a.separate_weights;
+        c.stage1.scale = a.stage1_scale as usize;
         c.blend.width = a.blend_width;
         c.width = a.size.0;
         c.height = a.size.1;
@@ -176,6 +197,9 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         c.checkpoint_every = a.checkpoint_every;
         c.val_samples = a.val_samples;
         c.data = sources;
+        if a.prior == PriorArg::Sweep {
+            c = c.with_sweep_prior();
+        }
         let loss = match a.loss.as_str() {
             "photometric" => TrainLoss::Photometric,
             want => match TrainLoss::from_weights(Some(&weights), a.perceptual_weight, &device) {

@@ -6,7 +6,59 @@ use std::path::Path;
 use anyhow::Context;
 use glam::{DMat3, DVec3};
 use image::{Rgb32FImage, RgbImage, RgbaImage};
-use mhi_geom::{Camera, RigidTransform};
+use mhi_geom::{BlendHeuristic, Camera, RigidTransform};
+use mhi_net::Model;
+use mhi_render::{Blend, Mhi, Prune, RenderOptions, RenderStats, heuristic_weights_for, render};
+
+/// The N multi-normal images of a view. With a budget, layers are skipped and compositing stops
+/// within it (Avg weights at render time never drop a normal, so every image is there for any
+/// blend that follows; each image then moves by at most two thirds of the budget).
+pub fn render_mni(
+    mhi: &Mhi,
+    camera: &Camera,
+    prune: Prune,
+) -> anyhow::Result<mhi_render::Rendered> {
+    Ok(render(
+        mhi,
+        camera,
+        &RenderOptions {
+            blend: Blend::Heuristic(BlendHeuristic::Avg),
+            prune,
+            keep_multi_normal: true,
+        },
+    )?)
+}
+
+/// One novel view of an MHI within `prune`'s budget: blended by a trained model's network
+/// (N > 1), or by Soft, where normals the view does not need are also left out.
+pub fn view(
+    mhi: &Mhi,
+    model: Option<&Model>,
+    cam: &Camera,
+    prune: Prune,
+) -> anyhow::Result<(Rgb32FImage, RenderStats)> {
+    match model {
+        Some(m) if mhi.n() > 1 => {
+            let r = render_mni(mhi, cam, prune)?;
+            let soft =
+                heuristic_weights_for(mhi.normals(), mhi.reference(), cam, BlendHeuristic::Soft);
+            let w = m.blend_weights(&r.multi_normal, &soft)?;
+            Ok((combine(&r.multi_normal, &w), r.stats))
+        }
+        _ => {
+            let r = render(
+                mhi,
+                cam,
+                &RenderOptions {
+                    blend: Blend::Heuristic(BlendHeuristic::Soft),
+                    prune,
+                    keep_multi_normal: false,
+                },
+            )?;
+            Ok((r.image, r.stats))
+        }
+    }
+}
 
 /// `Σ_i w_i · mni_i` per pixel, with `weights` `N × H × W` (normal-major).
 pub fn combine(mni: &[Rgb32FImage], weights: &[f32]) -> Rgb32FImage {

@@ -857,6 +857,7 @@ fn interrupted_sets_absurd_far_planes_and_methods_that_apply_to_nothing() {
         data,
         "--methods",
         "learned",
+        "--no-pretrained",
         "--size",
         "32x32",
         "--out",

@@ -1291,7 +1291,12 @@ fn write_layers_and_orbit(
 
     if a.orbit_frames > 0 {
         let baseline = (rf.camera.center_in_world() - sf.camera.center_in_world()).length();
-        let cams = crate::views::orbit(&rf.camera, 0.5 * baseline, a.orbit_frames)?;
+        let (cams, _) = crate::views::orbit(
+            &rf.camera,
+            0.5 * baseline,
+            a.orbit_frames,
+            crate::views::median_depth(&mhi),
+        )?;
         let mut frames = Vec::new();
         for c in &cams {
             let (img, _) = crate::views::view(&mhi, learned, c, a.prune())?;

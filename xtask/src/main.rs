@@ -5,6 +5,7 @@ mod data;
 mod demo;
 mod eval;
 mod experiments;
+mod export;
 mod metrics;
 mod models;
 mod ops;
@@ -64,6 +65,10 @@ enum Task {
     /// and the poses to render; a trained run (--run) or the training-free sweep builds the MHI;
     /// writes the views and an orbit GIF around the reference photo.
     Render(render::RenderArgs),
+    /// An MHI as a folder a browser opens (no network, no build step): the layers as PNG
+    /// atlases, a manifest and a WebGL2 viewer (index.html) with mouse and keyboard camera
+    /// control; same options as `render`, written to --out.
+    Export(render::RenderArgs),
     /// PSNR, SSIM, LPIPS-alex and LPIPS-vgg (v0.1) of two images of the same size.
     Metrics(metrics::MetricsArgs),
 }
@@ -99,6 +104,7 @@ fn main() {
         Task::Eval(a) => eval::eval(&a),
         Task::Demo(a) => demo::demo(&a),
         Task::Render(a) => render::render(&a),
+        Task::Export(a) => render::export(&a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

@@ -81,6 +81,9 @@ pub struct RenderArgs {
     /// change any pixel (1 = 1/255).
     #[arg(long, default_value_t = 1.0)]
     pub budget: f32,
+    /// Also write the MHI as an interactive viewer folder here (see `cargo xtask export`).
+    #[arg(long)]
+    pub export: Option<PathBuf>,
     /// Print the scene plan: what the views do not need (normals, layers, depth range), why,
     /// the bound kept, and the MHI's size before and after (it is written to plan.json too).
     #[arg(long)]
@@ -89,6 +92,15 @@ pub struct RenderArgs {
 
 /// `cargo xtask render`.
 pub fn render(a: &RenderArgs) -> anyhow::Result<()> {
+    run(a, a.export.as_deref(), true)
+}
+
+/// `cargo xtask export`: the viewer folder in --out (or --export), no rendered views.
+pub fn export(a: &RenderArgs) -> anyhow::Result<()> {
+    run(a, Some(a.export.as_deref().unwrap_or(&a.out)), false)
+}
+
+fn run(a: &RenderArgs, export: Option<&std::path::Path>, views_too: bool) -> anyhow::Result<()> {
     let file = CameraFile::read(&a.cameras)?;
     let rows = file.rows.len();
     for (what, r) in [("--ref-row", a.ref_row), ("--src-row", a.src_row)] {
@@ -117,16 +129,26 @@ pub fn render(a: &RenderArgs) -> anyhow::Result<()> {
             a.ref_row
         );
     }
-    let taken = std::fs::read_dir(&a.out).is_ok_and(|d| {
-        d.flatten().any(|e| {
-            let n = e.file_name().to_string_lossy().into_owned();
-            n.starts_with("view_row") || n == "orbit.gif"
-        })
-    });
+    let taken = views_too
+        && std::fs::read_dir(&a.out).is_ok_and(|d| {
+            d.flatten().any(|e| {
+                let n = e.file_name().to_string_lossy().into_owned();
+                n.starts_with("view_row") || n == "orbit.gif"
+            })
+        });
     if taken && !a.overwrite {
         bail!(
             "{} already holds rendered views; pass --overwrite to replace them or choose another --out",
             a.out.display()
+        );
+    }
+    if let Some(dir) = export
+        && dir.join("index.html").exists()
+        && !a.overwrite
+    {
+        bail!(
+            "{} already holds an exported viewer; pass --overwrite to replace it or choose another folder",
+            dir.display()
         );
     }
     let run = match (&a.run, a.sweep) {
@@ -216,8 +238,12 @@ pub fn render(a: &RenderArgs) -> anyhow::Result<()> {
         },
         t0.elapsed().as_secs_f64() * 1e3
     );
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("cannot create {}", a.out.display()))?;
+    let out = if views_too {
+        a.out.clone()
+    } else {
+        export.unwrap_or(&a.out).to_path_buf()
+    };
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     let targets: Vec<(usize, Camera)> = file
         .rows
         .iter()
@@ -231,8 +257,25 @@ pub fn render(a: &RenderArgs) -> anyhow::Result<()> {
         })
         .collect::<anyhow::Result<_>>()?;
     let baseline = (rf.camera.center_in_world() - sf.camera.center_in_world()).length();
-    let orbit_cams = if a.orbit_frames > 0 {
-        orbit(&rf.camera, a.orbit_radius * baseline, a.orbit_frames)?
+    let orbit_cams = if a.orbit_frames > 0 && views_too {
+        let look_at = crate::views::median_depth(&mhi);
+        let (cams, deg) = orbit(
+            &rf.camera,
+            a.orbit_radius * baseline,
+            a.orbit_frames,
+            look_at,
+        )?;
+        match look_at {
+            Some(z) => println!(
+                "orbit: {} cameras on a circle of radius {:.3}, turned toward the median depth {z:.3} (rotation up to {deg:.1} deg)",
+                cams.len(),
+                a.orbit_radius * baseline
+            ),
+            None => println!(
+                "orbit: nothing in front of the far plane; the cameras translate without turning"
+            ),
+        }
+        cams
     } else {
         Vec::new()
     };
@@ -265,7 +308,7 @@ pub fn render(a: &RenderArgs) -> anyhow::Result<()> {
         .collect();
     let plan = mhi_render::plan::analyse(&mhi, &views, prune)?;
     mhi_data::write_atomic(
-        &a.out.join("plan.json"),
+        &out.join("plan.json"),
         &serde_json::to_vec_pretty(&serde_json::json!({
             "exact": a.exact,
             "blend": if heuristic == BlendHeuristic::Avg { "learned (no normal left out: its weights come after the multi-normal images)" } else { "Soft" },
@@ -274,6 +317,31 @@ pub fn render(a: &RenderArgs) -> anyhow::Result<()> {
     )?;
     if a.explain {
         println!("{}", plan.explain());
+    }
+    if let Some(dir) = export {
+        let inputs = [
+            crate::export::ViewerCamera::new("reference photo", &rf.camera),
+            crate::export::ViewerCamera::new("source photo", &sf.camera),
+        ];
+        let listed: Vec<_> = targets
+            .iter()
+            .map(|(row, c)| crate::export::ViewerCamera::new(&format!("camera row {row}"), c))
+            .collect();
+        let source = if model.is_some() {
+            "trained stage 1 (the viewer blends with Soft: the blending network does not run in the browser)"
+        } else {
+            "training-free plane sweep"
+        };
+        crate::export::write_viewer(dir, &mhi, &plan, source, &inputs, &listed)?;
+        println!(
+            "viewer: {} (open it in a browser; {} of {} layers kept)",
+            dir.join("index.html").display(),
+            plan.layers_kept,
+            mhi.n() * mhi.d()
+        );
+    }
+    if !views_too {
+        return Ok(());
     }
     let pb = crate::progress::bar((targets.len() + a.orbit_frames) as u64, "render");
     let mut worst_bound = 0.0_f32;

@@ -92,16 +92,35 @@ pub fn clipped(img: &Rgb32FImage) -> Rgb32FImage {
 }
 
 /// Cameras on a circle of `radius` around the reference camera's centre, in its image plane
-/// (x right, y down), looking the same way: the paper's circular light-field rendering.
-pub fn orbit(reference: &Camera, radius: f64, frames: usize) -> anyhow::Result<Vec<Camera>> {
+/// (x right, y down), each turned to look at the point `look_at` units along the reference's
+/// optical axis (as a hand-held orbit does; `None` keeps the reference's orientation, a pure
+/// translation). Returns the cameras and the largest rotation from the reference, in degrees.
+pub fn orbit(
+    reference: &Camera,
+    radius: f64,
+    frames: usize,
+    look_at: Option<f64>,
+) -> anyhow::Result<(Vec<Camera>, f64)> {
     let world_from_ref = reference.cam_from_world.inverse();
-    (0..frames)
+    let r_ref: DMat3 = reference.cam_from_world.rotation();
+    let mut max_deg = 0.0_f64;
+    let cams = (0..frames)
         .map(|k| {
             let th = std::f64::consts::TAU * k as f64 / frames as f64;
             let offset_cam = DVec3::new(radius * th.cos(), radius * th.sin(), 0.0);
-            // Same rotation; centre moved by `offset_cam` expressed in the reference frame.
+            // cam_from_ref rotation: rows are the new camera's axes in the reference frame.
+            let turn = match look_at {
+                Some(z) if z.is_finite() && z > 0.0 => {
+                    let fwd = (DVec3::new(0.0, 0.0, z) - offset_cam).normalize();
+                    let right = DVec3::Y.cross(fwd).normalize();
+                    let down = fwd.cross(right);
+                    DMat3::from_cols(right, down, fwd).transpose()
+                }
+                _ => DMat3::IDENTITY,
+            };
+            max_deg = max_deg.max(mhi_geom::rotation_angle_deg(&turn));
             let center = world_from_ref.transform_point(offset_cam);
-            let r: DMat3 = reference.cam_from_world.rotation();
+            let r = turn * r_ref;
             let pose = RigidTransform::new(r, -(r * center))?;
             Ok(Camera::new(
                 reference.intrinsics,
@@ -110,7 +129,27 @@ pub fn orbit(reference: &Camera, radius: f64, frames: usize) -> anyhow::Result<V
                 reference.height,
             )?)
         })
-        .collect()
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    Ok((cams, max_deg))
+}
+
+/// The median depth the MHI sees from its reference camera: the median over pixels of the
+/// expected disparity through the normal closest to the optical axis, inverted. `None` when
+/// nothing is in front (every disparity zero).
+pub fn median_depth(mhi: &Mhi) -> Option<f64> {
+    let normals = mhi.normals().normals();
+    let i = (0..normals.len()).max_by(|a, b| normals[*a].z.total_cmp(&normals[*b].z))?;
+    let mut disp: Vec<f32> = mhi
+        .expected_disparity(i)
+        .into_iter()
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .collect();
+    if disp.is_empty() {
+        return None;
+    }
+    let mid = disp.len() / 2;
+    let (_, m, _) = disp.select_nth_unstable_by(mid, f32::total_cmp);
+    Some(1.0 / f64::from(*m))
 }
 
 /// Nearest-neighbour enlargement by an integer factor (small renders stay readable).

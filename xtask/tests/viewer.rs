@@ -1,0 +1,209 @@
+//! The exported viewer against the CPU renderer, in a real browser: a synthetic scene's sweep MHI
+//! is exported (with the default budget, layers left out) and rendered exactly by `render`; for
+//! each listed camera headless Chromium takes a screenshot of index.html#view=k, and the two
+//! images must agree to 35 dB covered PSNR.
+//!
+//! Skipped with a printed reason where no Chromium is installed, unless MHI_REQUIRE_BROWSER=1
+//! (as `.ci/run` sets after installing Debian's `chromium`), which turns a missing browser
+//! into a failure.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use mhi_data::{SynthConfig, generate};
+
+fn chromium() -> Option<PathBuf> {
+    if let Ok(p) = std::env::var("MHI_CHROMIUM") {
+        return Some(PathBuf::from(p));
+    }
+    [
+        "/usr/bin/chromium",
+        "/usr/bin/chromium-browser",
+        "/usr/bin/google-chrome",
+    ]
+    .iter()
+    .map(PathBuf::from)
+    .find(|p| p.is_file())
+}
+
+fn xtask(args: &[&str]) {
+    let out = Command::new(env!("CARGO_BIN_EXE_xtask"))
+        .args(args)
+        .output()
+        .expect("run xtask");
+    assert!(
+        out.status.success(),
+        "xtask {args:?} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// A screenshot of `page#hash`, cropped to `w × h` (the window is larger: headless Chromium's
+/// viewport has a minimum size).
+fn screenshot(
+    browser: &Path,
+    page: &Path,
+    hash: &str,
+    w: u32,
+    h: u32,
+    dir: &Path,
+) -> image::RgbImage {
+    let shot = dir.join(format!("shot-{}.png", hash.replace(['=', '&'], "_")));
+    let out = Command::new(browser)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--no-first-run",
+            "--hide-scrollbars",
+            "--force-device-scale-factor=1",
+            "--window-size=480,360",
+        ])
+        .arg(format!("--user-data-dir={}", dir.join("profile").display()))
+        .arg(format!("--screenshot={}", shot.display()))
+        .arg(format!("file://{}#{hash}&nohud", page.display()))
+        .output()
+        .expect("run chromium");
+    assert!(
+        shot.is_file(),
+        "chromium wrote no screenshot: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let img = image::open(&shot).expect("screenshot").to_rgb8();
+    image::imageops::crop_imm(&img, 0, 0, w, h).to_image()
+}
+
+#[test]
+fn the_browser_viewer_agrees_with_the_cpu_renderer() {
+    let Some(browser) = chromium() else {
+        assert!(
+            std::env::var("MHI_REQUIRE_BROWSER").as_deref() != Ok("1"),
+            "MHI_REQUIRE_BROWSER=1 but no Chromium found (install Debian's chromium)"
+        );
+        eprintln!(
+            "SKIPPED: no Chromium at /usr/bin/chromium (or $MHI_CHROMIUM); the viewer was not checked"
+        );
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let data = d.path().join("data");
+    generate(
+        &SynthConfig {
+            scenes: 1,
+            frames: 6,
+            width: 128,
+            height: 96,
+            seed: 5,
+            test_fraction: 0.0,
+            ..SynthConfig::default()
+        },
+        &data,
+        &|| {},
+    )
+    .unwrap();
+    let seq = ["train", "val", "test"]
+        .iter()
+        .filter_map(|split| std::fs::read_dir(data.join(split)).ok())
+        .flat_map(|rd| rd.flatten().map(|e| e.path()))
+        .find(|p| p.is_dir())
+        .expect("a generated sequence");
+    let file = seq.with_extension("txt");
+    let text = std::fs::read_to_string(&file).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    // Rows: reference (frame 0), targets (frames 1, 2, 4), source (frame 3).
+    let cams = d.path().join("cams.txt");
+    std::fs::write(
+        &cams,
+        [lines[0], lines[1], lines[2], lines[3], lines[4], lines[5]].join("\n"),
+    )
+    .unwrap();
+    let frame = |row: usize| {
+        let ts = lines[row].split_whitespace().next().unwrap();
+        seq.join(format!("{ts}.png")).display().to_string()
+    };
+    let (rf, sf) = (frame(1), frame(4));
+    let common = [
+        "--ref",
+        &rf,
+        "--src",
+        &sf,
+        "--src-row",
+        "4",
+        "--cameras",
+        cams.to_str().unwrap(),
+        "--sweep",
+        "--planes",
+        "12",
+        "--size",
+        "128x96",
+    ];
+    let viewer = d.path().join("viewer");
+    let cpu = d.path().join("cpu");
+    let mut args = vec!["export"];
+    args.extend(common);
+    args.extend(["--out", viewer.to_str().unwrap()]);
+    xtask(&args);
+    let mut args = vec!["render"];
+    args.extend(common);
+    args.extend([
+        "--exact",
+        "--orbit-frames",
+        "0",
+        "--out",
+        cpu.to_str().unwrap(),
+    ]);
+    xtask(&args);
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(viewer.join("manifest.json")).unwrap())
+            .unwrap();
+    let reference = mhi_data::CameraFile::read(&cams).unwrap().rows[0]
+        .camera(128, 96)
+        .unwrap();
+    let file_rows = mhi_data::CameraFile::read(&cams).unwrap().rows;
+    let to_f = |img: &image::RgbImage| {
+        image::Rgb32FImage::from_fn(128, 96, |x, y| {
+            image::Rgb(img.get_pixel(x, y).0.map(|v| f32::from(v) / 255.0))
+        })
+    };
+    for (k, row) in [2usize, 3, 5].iter().enumerate() {
+        let shot = screenshot(
+            &browser,
+            &viewer.join("index.html"),
+            &format!("view={k}"),
+            128,
+            96,
+            d.path(),
+        );
+        let truth = image::open(cpu.join(format!("view_row{row:03}.png")))
+            .unwrap()
+            .to_rgb8();
+        let target = file_rows[row - 1].camera(128, 96).unwrap();
+        let covered = mhi_eval::covered_mask(&reference, &target, 100.0);
+        let psnr = mhi_eval::psnr_masked(&to_f(&shot), &to_f(&truth), &covered)
+            .unwrap()
+            .expect("covered pixels");
+        eprintln!(
+            "camera row {row} ({}): browser vs CPU covered PSNR {psnr:.2} dB",
+            manifest["views"][k]["name"]
+        );
+        assert!(psnr >= 35.0, "camera row {row}: {psnr:.2} dB < 35 dB");
+    }
+    // A black page (no WebGL, a shader that failed) scores far below the threshold.
+    let truth = image::open(cpu.join("view_row002.png")).unwrap().to_rgb8();
+    let target = file_rows[1].camera(128, 96).unwrap();
+    let covered = mhi_eval::covered_mask(&reference, &target, 100.0);
+    let to_f = |img: &image::RgbImage| {
+        image::Rgb32FImage::from_fn(128, 96, |x, y| {
+            image::Rgb(img.get_pixel(x, y).0.map(|v| f32::from(v) / 255.0))
+        })
+    };
+    let black = mhi_eval::psnr_masked(&image::Rgb32FImage::new(128, 96), &to_f(&truth), &covered)
+        .unwrap()
+        .unwrap();
+    assert!(black < 35.0, "a black frame scores {black:.2} dB");
+}

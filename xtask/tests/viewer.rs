@@ -66,7 +66,7 @@ fn screenshot(
         ])
         .arg(format!("--user-data-dir={}", dir.join("profile").display()))
         .arg(format!("--screenshot={}", shot.display()))
-        .arg(format!("file://{}#{hash}&nohud", page.display()))
+        .arg(format!("file://{}#{hash}&nohud&zoom=1", page.display()))
         .output()
         .expect("run chromium");
     assert!(

@@ -843,17 +843,24 @@ impl Trainer {
         for k in 0..count {
             let s = self.validation_sample(k)?;
             let alpha = self.frozen_alphas_of(self.stage1_input_on(&s, &plain)?);
-            let RenderInputs {
-                geom,
-                color,
-                soft,
-                target,
-                ..
-            } = self.render_inputs(&s, &plain)?;
-            let (soft_img, mni) = render_shared(alpha, color, &geom, soft.clone());
-            let img = learned_blend(&blend, mni, soft);
-            e.psnr_learned += f64::from(psnr_of(img.clone(), target.clone(), false, 1)?);
-            e.psnr_soft += f64::from(psnr_of(soft_img.clone(), target.clone(), false, 1)?);
+            let inputs = self.render_inputs(&s, &plain)?;
+            let (soft_img, mni) = render_shared(
+                alpha,
+                inputs.color.clone(),
+                &inputs.geom,
+                inputs.soft.clone(),
+            );
+            let img = learned_blend(&blend, mni, inputs.soft.clone());
+            let target = inputs.target.clone();
+            // A run that scores covered pixels is validated on them too: its uncovered pixels
+            // are free to drift (no loss there), so whole-image PSNR would mislead.
+            let psnr = |x: Tensor<4>| match &inputs.covered {
+                Some(m) => psnr_covered(x, target.clone(), m.clone()),
+                None => psnr_of(x, target.clone(), false, 1),
+            };
+            e.psnr_learned += f64::from(psnr(img.clone())?);
+            e.psnr_soft += f64::from(psnr(soft_img.clone())?);
+            let (img, soft_img) = (inputs.scored(img), inputs.scored(soft_img));
             if let Some(net) = lpips {
                 let l = scalar(net.lpips(img.clamp(0.0, 1.0), target.clone()).mean())?;
                 let ls = scalar(net.lpips(soft_img.clamp(0.0, 1.0), target).mean())?;
@@ -950,7 +957,8 @@ impl RenderInputs {
 pub const CSV_HEADER: &str =
     "step,phase,loss,psnr,elapsed_s,volume_ms,stage1_ms,render_ms,loss_ms,backward_ms\n";
 
-/// Header of `val.csv`: held-out PSNR (learned blend, Soft on stage 1) at each checkpoint.
+/// Header of `val.csv`: held-out PSNR (learned blend, Soft on stage 1) at each checkpoint,
+/// over the covered pixels for a run with `covered_loss`.
 pub const VAL_CSV_HEADER: &str = "step,elapsed_s,psnr_learned,psnr_soft\n";
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -1030,6 +1038,19 @@ fn scalar(t: Tensor<1>) -> crate::Result<f32> {
     v.first()
         .copied()
         .ok_or_else(|| Error::NonFinite("empty loss".into()))
+}
+
+/// PSNR over the pixels where `mask` (`[1, 1, H, W]`) is 1, of `output` (`[1, 3, H, W]`)
+/// against `target` (over the whole image when nothing is covered).
+fn psnr_covered(output: Tensor<4>, target: Tensor<4>, mask: Tensor<4>) -> crate::Result<f32> {
+    let [_, c, h, w] = output.dims();
+    let m = mask.expand([1, c, h, w]);
+    let sq = (output.clone().clamp(0.0, 1.0) - target.clone()).powi_scalar(2) * m.clone();
+    let (num, den) = (scalar(sq.sum())?, scalar(m.sum())?);
+    if den <= 0.0 {
+        return psnr_of(output, target, false, 1);
+    }
+    Ok(10.0 * (1.0 / (num / den).max(1e-10)).log10())
 }
 
 /// PSNR of `output` (`[N or 1, 3, H, W]`) against `target` (`[1, 3, H, W]`), averaged over the

@@ -65,7 +65,9 @@ pub struct BenchArgs {
     /// backend (`wgpu`, needs `--features wgpu`) with the same weights and compare.
     #[arg(long)]
     pub compare_backend: Option<String>,
-    /// Dataset for --train-step and --compare-backend (synthetic; generated if missing).
+    /// Dataset for --train-step and --compare-backend (synthetic; generated if missing), and
+    /// the scene of the pruned render's timing: the sweep MHI of its first test triplet (a real
+    /// root such as ../shared/data/real/re10k-3 gives a real scene).
     #[arg(long, default_value = "data/synth")]
     pub data: PathBuf,
     /// Weights cache for --train-step's VGG loss (default: $MHI_CACHE, else ~/.cache/mhi).
@@ -122,6 +124,91 @@ pub fn scene(n: usize, d: usize, size: u32, per_layer: bool) -> anyhow::Result<(
         .map(|_| rng.random::<f32>())
         .collect();
     Ok((Mhi::new(normals, depths, reference, color, alpha)?, target))
+}
+
+/// Exact against pruned render time of a real MHI.
+#[derive(serde::Serialize)]
+struct RealPruning {
+    scene: String,
+    size: (u32, u32),
+    exact_ms: f64,
+    pruned_ms: f64,
+    layers_pruned: usize,
+    normals_pruned: usize,
+    bound: f32,
+}
+
+fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<RealPruning> {
+    if a.data == std::path::Path::new("data/synth") {
+        crate::experiments::ensure_synthetic(&a.data)?;
+    }
+    let ds = mhi_data::Dataset::open(&a.data, "test", 3).with_context(|| {
+        format!(
+            "--data {}: the pruned timing needs its test split",
+            a.data.display()
+        )
+    })?;
+    let idx = mhi_data::TripletIndex::sample(&ds, 1, 0);
+    let t = idx
+        .triplets
+        .first()
+        .with_context(|| format!("--data {}: no test triplet", a.data.display()))?;
+    let seq = ds
+        .sequences
+        .iter()
+        .find(|s| s.name == t.sequence)
+        .context("triplet sequence")?;
+    let size = crate::eval::size_for(mhi_data::check_same_size(&[&seq.frames[0]])?, a.size);
+    let load = |i: usize| mhi_data::load_frame(&seq.frames[i], Some(size), mhi_data::Fit::Stretch);
+    let (rf, sf, tf) = (load(t.reference)?, load(t.source)?, load(t.target)?);
+    let normals = if a.normals == 5 {
+        NormalSet::paper()
+    } else {
+        NormalSet::paper_subset(a.normals)?
+    };
+    let mhi = mhi_render::sweep_mhi(
+        &normals,
+        &depths_linear_in_disparity(1.0, 100.0, a.planes)?,
+        &rf.camera,
+        &rf.image,
+        &sf.camera,
+        &sf.image,
+        &mhi_render::SweepConfig::for_short_side(size.0.min(size.1)),
+    )?;
+    let soft = RenderOptions {
+        blend: Blend::Heuristic(BlendHeuristic::Soft),
+        ..Default::default()
+    };
+    let pruned_opts = RenderOptions {
+        prune: Prune::DEFAULT,
+        ..soft
+    };
+    let stats = render(&mhi, &tf.camera, &pruned_opts)?.stats;
+    let (exact_ms, pruned_ms) = pool.install(|| {
+        let e = median_ms(a.runs, || {
+            std::hint::black_box(render(&mhi, &tf.camera, &soft).expect("valid scene"));
+        });
+        let p = median_ms(a.runs, || {
+            std::hint::black_box(render(&mhi, &tf.camera, &pruned_opts).expect("valid scene"));
+        });
+        (e, p)
+    });
+    Ok(RealPruning {
+        scene: format!(
+            "{}/{} frames {}-{}-{}",
+            a.data.display(),
+            seq.name,
+            t.reference,
+            t.source,
+            t.target
+        ),
+        size,
+        exact_ms,
+        pruned_ms,
+        layers_pruned: stats.layers_pruned,
+        normals_pruned: stats.normals_pruned,
+        bound: stats.bound,
+    })
 }
 
 /// Run the PyTorch peer renderer on the bench's shapes; its median milliseconds and version.
@@ -268,6 +355,10 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
         });
         Ok((full, pruned, read_bandwidth()))
     })?;
+    // Pruning pays only on a real MHI (uniform random alphas leave nothing out): the sweep MHI
+    // of the first test triplet of --data, exact against pruned, at the bench's N, D and short
+    // side.
+    let real = realistic_pruning(a, &pool)?;
     // Per-layer colour (the peer's layout): every layer is a full RGBA image.
     let (mhi_pl, _) = scene(n, d, size, true)?;
     let per_layer_ms = pool.install(|| {
@@ -284,7 +375,21 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
         a.threads, a.runs
     );
     println!("  this renderer (shared colour, soft blend): {render_ms:8.1} ms");
-    println!("  with the default render plan (pruning):    {pruned_ms:8.1} ms");
+    println!(
+        "  with the default render plan (pruning):    {pruned_ms:8.1} ms (random alphas: only the transmittance stop applies)"
+    );
+    println!(
+        "  sweep MHI of {} at {}x{}: exact {:.1} ms, pruned {:.1} ms ({:.2}x; {} layers and {} normals left out, bound {:.5})",
+        real.scene,
+        real.size.0,
+        real.size.1,
+        real.exact_ms,
+        real.pruned_ms,
+        real.exact_ms / real.pruned_ms,
+        real.layers_pruned,
+        real.normals_pruned,
+        real.bound
+    );
     println!("  per-layer colour (the peer's layout):      {per_layer_ms:8.1} ms");
     println!(
         "  memory floor: {:.1} MB read once at {:.1} GB/s = {floor_ms:.1} ms ({:.1}x above it)",
@@ -324,6 +429,7 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
         let v = serde_json::json!({
             "normals": n, "planes": d, "size": size, "threads": a.threads, "runs": a.runs,
             "render_ms": render_ms, "pruned_ms": pruned_ms, "per_layer_color_ms": per_layer_ms,
+            "realistic_pruning": serde_json::to_value(&real)?,
             "torch_shared_ms": torch_shared, "torch_per_layer_ms": torch_per_layer,
             "ratio_shared": ratio_shared, "ratio_per_layer": ratio_per_layer,
             "floor_ratio": render_ms / floor_ms,

@@ -145,7 +145,7 @@ pub struct EvalArgs {
     #[arg(long)]
     pub exact: bool,
     /// The error budget of a pruned render, in 8-bit levels per pixel (1 = 1/255).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub budget: f32,
 }
 
@@ -251,6 +251,12 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         bail!(
             "{} already holds a report; pass --overwrite to replace it or choose another --out",
             a.out.display()
+        );
+    }
+    if !(a.budget.is_finite() && (0.0..=255.0).contains(&a.budget)) {
+        bail!(
+            "--budget {} must be a number of 8-bit levels in [0, 255] (1 by default)",
+            a.budget
         );
     }
     if a.short_side < 32 {

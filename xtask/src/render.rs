@@ -79,7 +79,7 @@ pub struct RenderArgs {
     pub exact: bool,
     /// The error budget, in 8-bit levels per pixel: the most that everything left out may
     /// change any pixel (1 = 1/255).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub budget: f32,
     /// Also write the MHI as an interactive viewer folder here (see `cargo xtask export`).
     #[arg(long)]

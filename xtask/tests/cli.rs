@@ -532,6 +532,7 @@ fn render_names_the_bad_camera_row_and_refuses_missing_rows() {
             "32x24".into(),
             "--planes".into(),
             "4".into(),
+            "--sweep".into(),
             "--orbit-frames".into(),
             "2".into(),
             "--out".into(),
@@ -552,6 +553,21 @@ fn render_names_the_bad_camera_row_and_refuses_missing_rows() {
     let v = base(cams.to_str().unwrap(), &[]);
     let err = fails(&v.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(err.contains("--overwrite"), "{err}");
+    // The plan is beside the views; a budget that is not a number of levels is refused.
+    assert!(out.join("plan.json").is_file());
+    let v = base(cams.to_str().unwrap(), &["--overwrite", "--budget", "-1"]);
+    let err = fails(&v.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(err.contains("--budget -1"), "{err}");
+    // An exported viewer is not replaced without --overwrite.
+    let viewer = d.path().join("viewer");
+    let mut v = base(cams.to_str().unwrap(), &["--export"]);
+    v.push(viewer.to_str().unwrap().into());
+    v[0] = "export".into();
+    let o = run(v.clone());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(viewer.join("index.html").is_file() && viewer.join("manifest.json").is_file());
+    let err = fails(&v.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(err.contains("already holds an exported viewer"), "{err}");
     // A row that is not a pose names the file and line.
     let text = std::fs::read_to_string(&cams).unwrap();
     let mut lines: Vec<String> = text.lines().map(String::from).collect();

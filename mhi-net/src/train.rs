@@ -165,11 +165,7 @@ impl TrainConfig {
     /// The normal set (the paper's subsets).
     pub fn normal_set(&self) -> crate::Result<NormalSet> {
         let n = self.stage1.normals;
-        Ok(if n == 5 {
-            NormalSet::paper()
-        } else {
-            NormalSet::paper_subset(n)?
-        })
+        Ok(NormalSet::paper_subset(n)?)
     }
 
     fn validate(&self) -> crate::Result<()> {

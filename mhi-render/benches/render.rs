@@ -24,11 +24,7 @@ fn scene(n: usize, d: usize) -> (Mhi, Camera) {
     )
     .unwrap();
     let target = Camera::new(k, rel.inverse(), s, s).unwrap();
-    let normals = if n == 5 {
-        NormalSet::paper()
-    } else {
-        NormalSet::paper_subset(n).unwrap()
-    };
+    let normals = NormalSet::paper_subset(n).unwrap();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
     let img = Rgb32FImage::from_fn(s, s, |_, _| {
         image::Rgb([rng.random(), rng.random(), rng.random()])

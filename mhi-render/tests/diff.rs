@@ -29,11 +29,7 @@ fn case(n: usize, d: usize, w: u32, h: u32, seed: u64, alpha_value: Option<f32>)
     )
     .unwrap();
     let reference = Camera::new(k, RigidTransform::IDENTITY, w, h).unwrap();
-    let normals = if n == 5 {
-        NormalSet::paper()
-    } else {
-        NormalSet::paper_subset(n).unwrap()
-    };
+    let normals = NormalSet::paper_subset(n).unwrap();
     let depths = depths_linear_in_disparity(1.0, 100.0, d).unwrap();
     let image = Rgb32FImage::from_fn(w, h, |_, _| {
         image::Rgb([rng.random(), rng.random(), rng.random()])

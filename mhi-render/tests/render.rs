@@ -21,11 +21,7 @@ fn random_mhi(n: usize, d: usize, w: u32, h: u32, per_layer: bool, seed: u64) ->
     )
     .unwrap();
     let reference = Camera::new(k, RigidTransform::IDENTITY, w, h).unwrap();
-    let normals = if n == 5 {
-        NormalSet::paper()
-    } else {
-        NormalSet::paper_subset(n).unwrap()
-    };
+    let normals = NormalSet::paper_subset(n).unwrap();
     let depths = depths_linear_in_disparity(1.0, 100.0, d).unwrap();
     let mut img = || {
         Rgb32FImage::from_fn(w, h, |_, _| {

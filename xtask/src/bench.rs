@@ -103,11 +103,7 @@ pub fn scene(n: usize, d: usize, size: u32, per_layer: bool) -> anyhow::Result<(
         DVec3::new(0.08, -0.02, 0.05),
     )?;
     let target = Camera::new(k, ref_from_tgt.inverse(), size, size)?;
-    let normals = if n == 5 {
-        NormalSet::paper()
-    } else {
-        NormalSet::paper_subset(n)?
-    };
+    let normals = NormalSet::paper_subset(n)?;
     let depths = depths_linear_in_disparity(1.0, 100.0, d)?;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
     let mut img = || {
@@ -161,11 +157,7 @@ fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<
     let size = crate::eval::size_for(mhi_data::check_same_size(&[&seq.frames[0]])?, a.size);
     let load = |i: usize| mhi_data::load_frame(&seq.frames[i], Some(size), mhi_data::Fit::Stretch);
     let (rf, sf, tf) = (load(t.reference)?, load(t.source)?, load(t.target)?);
-    let normals = if a.normals == 5 {
-        NormalSet::paper()
-    } else {
-        NormalSet::paper_subset(a.normals)?
-    };
+    let normals = NormalSet::paper_subset(a.normals)?;
     let mhi = mhi_render::sweep_mhi(
         &normals,
         &depths_linear_in_disparity(1.0, 100.0, a.planes)?,

@@ -478,11 +478,7 @@ pub fn sweep(a: &SweepArgs) -> anyhow::Result<()> {
     crate::data::check_memory("--size", a.size.0, a.size.1, a.normals * a.planes)?;
     let load = |i: usize| load_frame(&seq.frames[i], Some(a.size), Fit::Stretch);
     let (rf, sf, tf) = (load(a.reference)?, load(a.src)?, load(a.target)?);
-    let normals = if a.normals == 5 {
-        NormalSet::paper()
-    } else {
-        NormalSet::paper_subset(a.normals)?
-    };
+    let normals = NormalSet::paper_subset(a.normals)?;
     let depths = depths_linear_in_disparity(a.near, a.far, a.planes)?;
     let cfg = SweepConfig {
         temperature: a.temperature,

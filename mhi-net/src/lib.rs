@@ -1,7 +1,32 @@
 //! The learned half of MHI view synthesis on burn: the stage-1 3D U-Nets over the oriented cost
-//! volume, the stage-2 blending U-Net, the training loss and the two-phase training loop.
+//! volume (by default correcting the training-free sweep), the stage-2 blending U-Net, the
+//! training loss and the two-phase training loop, and [`ViewSynthesis`]: novel views from a
+//! posed pair with a trained model or the sweep.
 //!
-//! # Example
+//! # Example: a novel view from two photos and a camera file
+//!
+//! ```no_run
+//! use burn::tensor::Device;
+//! use mhi_data::{CameraFile, Fit, Frame, load_frame};
+//! use mhi_net::{BlendChoice, MhiSource, Model, ViewSynthesis};
+//! use mhi_render::Prune;
+//!
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let cams = CameraFile::read("cams.txt".as_ref())?; // rows: reference, source, target
+//! let frame = |row: usize, path: &str| Frame { row: cams.rows[row], path: path.into() };
+//! let rf = load_frame(&frame(0, "a.png"), Some((448, 256)), Fit::Stretch)?;
+//! let sf = load_frame(&frame(1, "b.png"), Some((448, 256)), Fit::Stretch)?;
+//! let model = Model::load("models/mhi-n5d16".as_ref(), Device::flex())?;
+//! let synth = ViewSynthesis::new(MhiSource::Learned(&model));
+//! let (mhi, _times) = synth.mhi(&rf, &sf)?;
+//! let target = cams.rows[2].camera(448, 256)?;
+//! let view = synth.render(&mhi, &target, BlendChoice::Learned, Prune::DEFAULT)?;
+//! mhi_data::write_png("view.png".as_ref(), &mhi_data::to_u8(&view.image))?;
+//! # Ok(())
+//! # }
+//! ```
+//!
+//! # Example: the networks alone
 //!
 //! ```
 //! use burn::tensor::{Device, Tensor};
@@ -23,6 +48,7 @@ mod model;
 mod nets;
 pub mod pickle;
 mod train;
+mod view;
 mod volume;
 
 pub use model::Model;
@@ -34,6 +60,7 @@ pub use train::{
     CSV_HEADER, EvalScores, GRAD_CLIP_NORM, Sample, StepReport, StepTimes, TrainConfig, Trainer,
     VAL_CSV_HEADER, init_models,
 };
+pub use view::{BlendChoice, MhiSource, MhiTimes, View, ViewSynthesis, render_view};
 pub use volume::{
     LOGIT_INPUT_SCALE, PRIOR_EPS, Prior, Stage1Input, SweepPrior, cost_volume, stage1_input,
 };

@@ -579,3 +579,19 @@ fn sample(
     }
     (a, c)
 }
+
+/// `Σ_i w_i · mni_i` per pixel, with `weights` `N × H × W` (normal-major).
+pub fn combine(mni: &[Rgb32FImage], weights: &[f32]) -> Rgb32FImage {
+    let (w, h) = mni[0].dimensions();
+    let px = (w * h) as usize;
+    let mut out = Rgb32FImage::new(w, h);
+    for (i, m) in mni.iter().enumerate() {
+        let wi = &weights[i * px..(i + 1) * px];
+        for ((o, p), &k) in out.pixels_mut().zip(m.pixels()).zip(wi) {
+            for c in 0..3 {
+                o.0[c] += k * p.0[c];
+            }
+        }
+    }
+    out
+}

@@ -43,7 +43,7 @@ pub mod stability;
 mod sweep;
 
 pub use cpu::{
-    Blend, Prune, RenderOptions, RenderStats, Rendered, W_EPS, heuristic_weights,
+    Blend, Prune, RenderOptions, RenderStats, Rendered, W_EPS, combine, heuristic_weights,
     heuristic_weights_for, render,
 };
 pub use error::{Error, Result};

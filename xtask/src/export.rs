@@ -1,6 +1,6 @@
 //! `cargo xtask export` (and `render --export`): an MHI as a self-contained folder that a
 //! browser opens without a build step or network — the reference colour once (reference.png),
-//! each normal's kept alpha layers tiled in one PNG atlas (alpha_normal_<i>.png), a manifest
+//! each normal's kept alpha layers tiled in one PNG atlas (`alpha_normal_<i>.png`), a manifest
 //! (manifest.json: normals, depths, kept layers and their tiles, cameras, blend, plan), the same
 //! data in data.js for the page, and index.html: a WebGL2 viewer that composites each normal's
 //! planes back to front and blends the multi-normal images with the Soft weights, as the CPU

@@ -11,8 +11,8 @@ use burn::tensor::Device;
 use clap::Args;
 use mhi_data::{CameraFile, Fit, Frame, load_frame};
 use mhi_geom::{BlendHeuristic, Camera, depths_linear_in_disparity};
-use mhi_net::Model;
-use mhi_render::{Prune, SweepConfig, heuristic_weights_for, sweep_mhi};
+use mhi_net::{MhiSource, Model, ViewSynthesis};
+use mhi_render::{Prune, SweepConfig, heuristic_weights_for};
 
 use crate::views::{clipped, enlarge, factor_for, orbit, view, write_gif};
 
@@ -207,24 +207,16 @@ fn run(a: &RenderArgs, export: Option<&std::path::Path>, views_too: bool) -> any
     )?;
     let sf = load_frame(&frame(&a.src, a.src_row - 1), Some(size), Fit::Stretch)?;
     let t0 = Instant::now();
-    let (mhi, model) = match &learned {
-        Some(m) => {
-            let alphas = m.alphas(m.stage1_input(&rf, &sf)?)?;
-            (m.mhi(&rf, alphas)?, Some(m))
-        }
-        None => (
-            sweep_mhi(
-                &mhi_geom::NormalSet::paper_subset(a.normals)?,
-                &depths_linear_in_disparity(a.near, a.far, a.planes)?,
-                &rf.camera,
-                &rf.image,
-                &sf.camera,
-                &sf.image,
-                &SweepConfig::for_short_side(size.0.min(size.1)),
-            )?,
-            None,
-        ),
-    };
+    let synth = ViewSynthesis::new(match &learned {
+        Some(m) => MhiSource::Learned(m),
+        None => MhiSource::Sweep {
+            normals: mhi_geom::NormalSet::paper_subset(a.normals)?,
+            depths: depths_linear_in_disparity(a.near, a.far, a.planes)?,
+            config: SweepConfig::for_short_side(size.0.min(size.1)),
+        },
+    });
+    let (mhi, _) = synth.mhi(&rf, &sf)?;
+    let model = synth.model();
     println!(
         "MHI: {} normals x {} planes at {}x{} ({}) in {:.0} ms",
         mhi.n(),

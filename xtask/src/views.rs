@@ -8,7 +8,7 @@ use glam::{DMat3, DVec3};
 use image::{Rgb32FImage, RgbImage, RgbaImage};
 use mhi_geom::{BlendHeuristic, Camera, RigidTransform};
 use mhi_net::Model;
-use mhi_render::{Blend, Mhi, Prune, RenderOptions, RenderStats, heuristic_weights_for, render};
+use mhi_render::{Blend, Mhi, Prune, RenderOptions, RenderStats, render};
 
 /// The N multi-normal images of a view. With a budget, layers are skipped and compositing stops
 /// within it (Avg weights at render time never drop a normal, so every image is there for any
@@ -37,44 +37,11 @@ pub fn view(
     cam: &Camera,
     prune: Prune,
 ) -> anyhow::Result<(Rgb32FImage, RenderStats)> {
-    match model {
-        Some(m) if mhi.n() > 1 => {
-            let r = render_mni(mhi, cam, prune)?;
-            let soft =
-                heuristic_weights_for(mhi.normals(), mhi.reference(), cam, BlendHeuristic::Soft);
-            let w = m.blend_weights(&r.multi_normal, &soft)?;
-            Ok((combine(&r.multi_normal, &w), r.stats))
-        }
-        _ => {
-            let r = render(
-                mhi,
-                cam,
-                &RenderOptions {
-                    blend: Blend::Heuristic(BlendHeuristic::Soft),
-                    prune,
-                    keep_multi_normal: false,
-                },
-            )?;
-            Ok((r.image, r.stats))
-        }
-    }
+    let v = mhi_net::render_view(mhi, model, cam, mhi_net::BlendChoice::Learned, prune)?;
+    Ok((v.image, v.stats))
 }
 
-/// `Σ_i w_i · mni_i` per pixel, with `weights` `N × H × W` (normal-major).
-pub fn combine(mni: &[Rgb32FImage], weights: &[f32]) -> Rgb32FImage {
-    let (w, h) = mni[0].dimensions();
-    let px = (w * h) as usize;
-    let mut out = Rgb32FImage::new(w, h);
-    for (i, m) in mni.iter().enumerate() {
-        let wi = &weights[i * px..(i + 1) * px];
-        for ((o, p), &k) in out.pixels_mut().zip(m.pixels()).zip(wi) {
-            for c in 0..3 {
-                o.0[c] += k * p.0[c];
-            }
-        }
-    }
-    out
-}
+pub use mhi_render::combine;
 
 /// Clamp every channel to [0, 1] (what is shown and scored).
 pub fn clipped(img: &Rgb32FImage) -> Rgb32FImage {

@@ -1,0 +1,57 @@
+//! The pretrained model shipped in `models/` loads, is the model its MODEL.md describes (the
+//! sweep prior, N = 5, D = 16), and a copy whose config.json no longer matches its weights is
+//! refused with a message that says so.
+
+use std::path::{Path, PathBuf};
+
+use burn::tensor::Device;
+use mhi_net::{Model, Prior};
+
+fn shipped() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/mhi-n5d16")
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap().flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            copy_dir(&p, &to.join(e.file_name()));
+        } else {
+            std::fs::copy(&p, to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+#[test]
+fn the_shipped_model_loads_and_a_mismatched_config_is_refused() {
+    let dir = shipped();
+    assert!(
+        dir.join("MODEL.md").is_file(),
+        "{} has no MODEL.md",
+        dir.display()
+    );
+    let m = Model::load(&dir, Device::flex()).unwrap();
+    assert_eq!(m.config().prior, Prior::Sweep);
+    assert_eq!((m.normals().len(), m.depths().len()), (5, 16));
+    assert!(
+        m.blend_trained(),
+        "the shipped model's blending network was trained"
+    );
+
+    let d = tempfile::tempdir().unwrap();
+    copy_dir(&dir, d.path());
+    let cfg = d.path().join("config.json");
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cfg).unwrap()).unwrap();
+    v["stage1"]["unet"]["width"] = serde_json::json!(16);
+    std::fs::write(&cfg, serde_json::to_string(&v).unwrap()).unwrap();
+    let err = Model::load(d.path(), Device::flex())
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        err.contains("does not match this run's config.json"),
+        "{err}"
+    );
+}

@@ -1,0 +1,185 @@
+//! The pruned-against-exact table: each MHI rendered within the budget and exactly, per view.
+
+use super::*;
+
+/// One pruned render against the exact render of the same MHI and view.
+#[derive(Serialize)]
+pub(super) struct PruneMeasure {
+    method: String,
+    normals: usize,
+    planes: usize,
+    /// Largest |pruned − exact| over pixels and channels (colour units).
+    max_abs: f32,
+    /// Mean |pruned − exact|.
+    mean_abs: f64,
+    /// Pixels whose change exceeds the bound the render reported (must be 0).
+    over_bound: usize,
+    /// Covered PSNR against the ground truth, pruned and exact (None without covered pixels).
+    psnr_pruned: Option<f64>,
+    psnr_exact: Option<f64>,
+    ms_pruned: f64,
+    ms_exact: f64,
+    layers: usize,
+    layers_pruned: usize,
+    normals_pruned: usize,
+    bound: f32,
+}
+
+impl PruneMeasure {
+    pub(super) fn new(
+        o: &Output,
+        e: &ExactCheck,
+        pruned: &Rgb32FImage,
+        gt: &Rgb32FImage,
+        covered: &[bool],
+    ) -> anyhow::Result<Self> {
+        let exact = clipped(&e.image);
+        let (mut max_abs, mut sum, mut over) = (0.0_f32, 0.0_f64, 0usize);
+        for (p, q) in pruned.pixels().zip(exact.pixels()) {
+            let d = (0..3)
+                .map(|c| (p.0[c] - q.0[c]).abs())
+                .fold(0.0_f32, f32::max);
+            max_abs = max_abs.max(d);
+            sum += (0..3)
+                .map(|c| f64::from((p.0[c] - q.0[c]).abs()))
+                .sum::<f64>();
+            if d > e.stats.bound + 1e-5 {
+                over += 1;
+            }
+        }
+        Ok(Self {
+            method: o.method.clone(),
+            normals: o.normals,
+            planes: o.planes,
+            max_abs,
+            mean_abs: sum / (3 * pruned.width() as usize * pruned.height() as usize).max(1) as f64,
+            over_bound: over,
+            psnr_pruned: mhi_eval::psnr_masked(pruned, gt, covered)?,
+            psnr_exact: mhi_eval::psnr_masked(&exact, gt, covered)?,
+            ms_pruned: o.times.render_ms + o.times.blend_ms,
+            ms_exact: e.render_ms + o.times.blend_ms,
+            layers: e.stats.layers,
+            layers_pruned: e.stats.layers_pruned,
+            normals_pruned: e.stats.normals_pruned,
+            bound: e.stats.bound,
+        })
+    }
+}
+
+/// Pruned against exact, per method and configuration over every triplet.
+#[derive(Serialize)]
+pub(super) struct PruneRow {
+    pub(super) method: String,
+    pub(super) normals: usize,
+    pub(super) planes: usize,
+    pub(super) views: usize,
+    pub(super) max_abs: f32,
+    pub(super) mean_abs: f64,
+    pub(super) over_bound: usize,
+    pub(super) bound: f32,
+    pub(super) psnr_pruned: f64,
+    pub(super) psnr_exact: f64,
+    /// Mean covered-PSNR change (pruned − exact) with its 95 % interval (None when a PSNR is
+    /// infinite: identical images).
+    pub(super) delta_psnr: Option<(f64, [f64; 2])>,
+    pub(super) ms_pruned: f64,
+    pub(super) ms_exact: f64,
+    /// Total exact render time over total pruned render time.
+    pub(super) speedup: f64,
+    pub(super) layers: usize,
+    pub(super) layers_pruned: f64,
+    pub(super) normals_pruned: f64,
+}
+
+pub(super) fn prune_rows(ms_: &[PruneMeasure], boot: &Bootstrap) -> Vec<PruneRow> {
+    let mut keys: Vec<(String, usize, usize)> = Vec::new();
+    for m in ms_ {
+        let k = (m.method.clone(), m.normals, m.planes);
+        if !keys.contains(&k) {
+            keys.push(k);
+        }
+    }
+    keys.into_iter()
+        .map(|(method, normals, planes)| {
+            let g: Vec<&PruneMeasure> = ms_
+                .iter()
+                .filter(|m| {
+                    (m.method.as_str(), m.normals, m.planes) == (method.as_str(), normals, planes)
+                })
+                .collect();
+            let k = g.len().max(1) as f64;
+            let mean = |f: &dyn Fn(&PruneMeasure) -> f64| g.iter().map(|m| f(m)).sum::<f64>() / k;
+            let pairs: Vec<(f64, f64)> = g
+                .iter()
+                .filter_map(|m| Some((m.psnr_pruned?, m.psnr_exact?)))
+                .filter(|(p, e)| p.is_finite() && e.is_finite())
+                .collect();
+            let deltas: Vec<f64> = pairs.iter().map(|(p, e)| p - e).collect();
+            let kp = pairs.len().max(1) as f64;
+            let (ms_pruned, ms_exact) = (mean(&|m| m.ms_pruned), mean(&|m| m.ms_exact));
+            PruneRow {
+                views: g.len(),
+                max_abs: g.iter().map(|m| m.max_abs).fold(0.0, f32::max),
+                mean_abs: mean(&|m| m.mean_abs),
+                over_bound: g.iter().map(|m| m.over_bound).sum(),
+                bound: g.iter().map(|m| m.bound).fold(0.0, f32::max),
+                psnr_pruned: pairs.iter().map(|p| p.0).sum::<f64>() / kp,
+                psnr_exact: pairs.iter().map(|p| p.1).sum::<f64>() / kp,
+                delta_psnr: boot.mean_ci(&deltas),
+                ms_pruned,
+                ms_exact,
+                speedup: ms_exact / ms_pruned.max(1e-9),
+                layers: g.first().map_or(0, |m| m.layers),
+                layers_pruned: mean(&|m| m.layers_pruned as f64),
+                normals_pruned: mean(&|m| m.normals_pruned as f64),
+                method,
+                normals,
+                planes,
+            }
+        })
+        .collect()
+}
+
+pub(super) fn prune_markdown(rows: &[PruneRow], a: &EvalArgs) -> String {
+    let mut s = String::from(
+        "## Leaving out what a view does not need: pruned against exact
+
+",
+    );
+    if a.exact {
+        s += "Not measured: this report was made with `--exact` (every render exact).
+
+";
+        return s;
+    }
+    let _ = writeln!(
+        s,
+        "Every MHI below was rendered twice per view, exactly and within the error budget of {:.2} 8-bit level(s) per pixel (the default; `--exact` turns it off). |Δ| compares the two renders (not the ground truth); ΔPSNR is the change of covered PSNR against the ground truth (mean, 95 % interval); time is the render (and Soft blend) alone; layers and normals are those left out per view. The report's other tables score the pruned renders.\n",
+        a.budget
+    );
+    s += "| method | views | max \\|Δ\\| | mean \\|Δ\\| | bound | pixels over bound | ΔPSNR dB | exact ms | pruned ms | speed-up | layers left out | normals left out |\n|---|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|\n";
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.5} | {:.6} | {:.5} | {} | {} | {:.1} | {:.1} | {:.2}x | {:.1} of {} | {:.2} of {} |",
+            config_label(&r.method, r.normals, r.planes),
+            r.views,
+            r.max_abs,
+            r.mean_abs,
+            r.bound,
+            r.over_bound,
+            r.delta_psnr.map_or("-".into(), |(m, [lo, hi])| format!(
+                "{m:+.3} [{lo:+.3}, {hi:+.3}]"
+            )),
+            r.ms_exact,
+            r.ms_pruned,
+            r.speedup,
+            r.layers_pruned,
+            r.layers,
+            r.normals_pruned,
+            r.normals
+        );
+    }
+    s.push('\n');
+    s
+}

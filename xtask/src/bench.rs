@@ -63,8 +63,8 @@ pub struct BenchArgs {
     pub peer_ops: Option<PathBuf>,
     /// Instead of the renderer, run the default model's forward pass on flex and on this
     /// backend (`wgpu`, needs `--features wgpu`) with the same weights and compare.
-    #[arg(long)]
-    pub compare_backend: Option<String>,
+    #[arg(long, value_enum)]
+    pub compare_backend: Option<crate::train::Backend>,
     /// Dataset for --train-step and --compare-backend (synthetic; generated if missing), and
     /// the scene of the pruned render's timing: the sweep MHI of its first test triplet (a real
     /// root such as ../shared/data/real/re10k-3 gives a real scene).
@@ -293,7 +293,7 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
         bail!("--runs 0: at least one timed run is needed for a median");
     }
     if let Some(other) = &a.compare_backend {
-        let v = crate::step::backend_agreement(&a.data, other)?;
+        let v = crate::step::backend_agreement(&a.data, *other)?;
         if let Some(p) = &a.json {
             mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
         }

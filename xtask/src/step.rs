@@ -207,7 +207,10 @@ pub fn peer_train_step(
 /// Run one forward pass of the default model (cost volume → stage 1 → warp and composite → the
 /// blending network) on the flex backend and on `other`, with the same weights (saved from flex,
 /// loaded on the other device) and the same sample; report the largest differences and times.
-pub fn backend_agreement(data: &Path, other: &str) -> anyhow::Result<serde_json::Value> {
+pub fn backend_agreement(
+    data: &Path,
+    other: crate::train::Backend,
+) -> anyhow::Result<serde_json::Value> {
     use burn::module::Module as _;
     let (config, [rf, sf, tf]) = default_sample(data)?;
     let flex = Device::flex();
@@ -306,7 +309,7 @@ pub fn backend_agreement(data: &Path, other: &str) -> anyhow::Result<serde_json:
         anyhow::bail!("{other} disagrees with flex beyond 1e-3");
     }
     Ok(serde_json::json!({
-        "backend": other, "flex_ms": t_flex, "other_ms": t_gpu,
+        "backend": other.to_string(), "flex_ms": t_flex, "other_ms": t_gpu,
         "max_alpha_diff": da, "max_image_diff": di, "nonfinite": nonfinite,
     }))
 }

@@ -10,6 +10,40 @@ use mhi_data::DataSource;
 use mhi_net::loss::TrainLoss;
 use mhi_net::{TrainConfig, Trainer};
 
+/// The training defaults, from one place: `TrainConfig` (the CLI shows them).
+fn defaults() -> TrainConfig {
+    TrainConfig::for_normals(5)
+}
+
+/// The tensor backend (`--backend`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Backend {
+    /// burn's CPU backend.
+    Flex,
+    /// burn's wgpu backend (a build with `--features wgpu`).
+    Wgpu,
+}
+
+impl std::fmt::Display for Backend {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Flex => "flex",
+            Self::Wgpu => "wgpu",
+        })
+    }
+}
+
+/// The training loss (`--loss`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LossArg {
+    /// The perceptual loss when the VGG16 weights are cached, else L1 + SSIM (said once).
+    Auto,
+    /// L1 + the VGG16 perceptual term; fails without the weights.
+    Perceptual,
+    /// L1 + SSIM.
+    Photometric,
+}
+
 /// What stage 1 starts from (`--prior`).
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PriorArg {
@@ -46,7 +80,7 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = 5, value_parser = crate::data::parse_normals)]
     pub normals: usize,
     /// Planes per normal.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = defaults().planes)]
     pub planes: usize,
     /// What stage 1 starts from. `sweep`: it corrects the training-free sweep's alpha logits
     /// and the blending network the log Soft weights, both with zero-initialised residuals, and
@@ -58,7 +92,7 @@ pub struct TrainArgs {
     #[arg(long, default_value = "64x64", value_parser = crate::data::parse_size)]
     pub size: (u32, u32),
     /// Channels of the first level of the stage-1 3D U-Net.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = defaults().stage1.unet.width)]
     pub width: usize,
     /// Run the stage-1 U-Net on the cost volume averaged over SCALE × SCALE pixel blocks and
     /// upsample its output (1: full resolution). With the sweep prior only the residual is
@@ -66,40 +100,40 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8))]
     pub stage1_scale: u32,
     /// Channels of the first level of the blending U-Net.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = defaults().blend.width)]
     pub blend_width: usize,
     /// Give every normal its own stage-1 network instead of sharing one.
     #[arg(long)]
     pub separate_weights: bool,
     /// Phase-1 steps (stage 1).
-    #[arg(long, default_value_t = 280)]
+    #[arg(long, default_value_t = defaults().phase1_steps)]
     pub phase1_steps: usize,
     /// Phase-2 steps (blending network).
-    #[arg(long, default_value_t = 140)]
+    #[arg(long, default_value_t = defaults().phase2_steps)]
     pub phase2_steps: usize,
     /// Stop (with a checkpoint) after this many seconds, whatever the step count; resume later.
     #[arg(long)]
     pub time_budget: Option<f64>,
     /// Learning rate (Adam).
-    #[arg(long, default_value_t = 2e-4)]
+    #[arg(long, default_value_t = defaults().lr)]
     pub lr: f64,
     /// Seed of the weights and of the sampled triplets.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = defaults().seed)]
     pub seed: u64,
     /// Checkpoint every this many steps.
-    #[arg(long, default_value_t = 50)]
+    #[arg(long, default_value_t = defaults().checkpoint_every)]
     pub checkpoint_every: usize,
     /// Backend: flex (CPU, default) or wgpu (needs `--features wgpu`).
-    #[arg(long, default_value = "flex")]
-    pub backend: String,
+    #[arg(long, value_enum, default_value_t = Backend::Flex)]
+    pub backend: Backend,
     /// Held-out samples scored at every checkpoint into val.csv (the training curve; 0: off).
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = defaults().val_samples)]
     pub val_samples: usize,
     /// Loss: `auto` (the paper's L1 + VGG perceptual loss when the VGG16 weights are in the
     /// cache, else L1 + SSIM, said once), `perceptual` (fail without the weights) or
     /// `photometric` (L1 + SSIM).
-    #[arg(long, default_value = "auto", value_parser = ["auto", "perceptual", "photometric"])]
-    pub loss: String,
+    #[arg(long, value_enum, default_value_t = LossArg::Auto)]
+    pub loss: LossArg,
     /// Factor of the VGG feature term against the pixel L1 in the perceptual loss. The default
     /// was measured to improve both PSNR and LPIPS at the default budget; the paper's scale
     /// (0.226) gains a little LPIPS but costs 1.0 dB at this budget (see
@@ -114,16 +148,15 @@ pub struct TrainArgs {
     pub eval_samples: usize,
 }
 
-pub fn device(backend: &str) -> anyhow::Result<Device> {
+pub fn device(backend: Backend) -> anyhow::Result<Device> {
     match backend {
-        "flex" => Ok(Device::flex()),
+        Backend::Flex => Ok(Device::flex()),
         #[cfg(feature = "wgpu")]
-        "wgpu" => Ok(Device::wgpu(burn::tensor::DeviceKind::DefaultDevice)),
+        Backend::Wgpu => Ok(Device::wgpu(burn::tensor::DeviceKind::DefaultDevice)),
         #[cfg(not(feature = "wgpu"))]
-        "wgpu" => bail!(
+        Backend::Wgpu => bail!(
             "this build has no wgpu backend; build it with `cargo run -p xtask --features wgpu -- ...` (about 14 minutes from clean)"
         ),
-        other => bail!("unknown backend {other:?}: choose flex (CPU) or wgpu"),
     }
 }
 
@@ -176,7 +209,7 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         crate::experiments::ensure_synthetic(&a.data[0])?;
     }
     let sources = sources(a)?;
-    let device = device(&a.backend)?.autodiff();
+    let device = device(a.backend)?.autodiff();
     let weights = crate::weights::cache_dir(a.cache.as_deref()).join("weights");
     let mut trainer = if a.resume {
         Trainer::resume(&a.run, &a.data[0], Some(&weights), device)
@@ -200,13 +233,13 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         if a.prior == PriorArg::Sweep {
             c = c.with_sweep_prior();
         }
-        let loss = match a.loss.as_str() {
-            "photometric" => TrainLoss::Photometric,
+        let loss = match a.loss {
+            LossArg::Photometric => TrainLoss::Photometric,
             want => match TrainLoss::from_weights(Some(&weights), a.perceptual_weight, &device) {
                 (l @ TrainLoss::Perceptual { .. }, _) => l,
                 (l, why) => {
                     let why = why.unwrap_or_default();
-                    if want == "perceptual" {
+                    if want == LossArg::Perceptual {
                         bail!("--loss perceptual: {why}");
                     }
                     eprintln!(
@@ -223,7 +256,7 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
     let lpips = mhi_net::backbone::Backbone::load(
         &weights,
         mhi_net::backbone::Net::Alex,
-        &self::device(&a.backend)?,
+        &self::device(a.backend)?,
     )
     .ok();
     let untrained = if trainer.step_index() == 0 {

@@ -47,6 +47,7 @@ pub mod loss;
 mod model;
 mod nets;
 pub mod pickle;
+mod run;
 mod train;
 mod view;
 mod volume;
@@ -56,6 +57,7 @@ pub use nets::{
     BlendNet, BlendNetConfig, SOFT_FLOOR, Stage1, Stage1Config, UNet3d, UNet3dConfig,
     conv3d_planes_as_2d,
 };
+pub use run::{Latest, RunDir, ValRow};
 pub use train::{
     CSV_HEADER, EvalScores, GRAD_CLIP_NORM, Sample, StepReport, StepTimes, TrainConfig, Trainer,
     VAL_CSV_HEADER, init_models,

@@ -12,7 +12,8 @@ use mhi_render::{LayerColor, Mhi};
 
 use crate::Error;
 use crate::nets::{BlendNet, Stage1};
-use crate::train::{Latest, TrainConfig, alphas_of, load_networks};
+use crate::run::RunDir;
+use crate::train::{TrainConfig, alphas_of, load_networks};
 use crate::volume::{Stage1Input, stage1_input};
 
 /// A trained model (the networks of a run's latest checkpoint) on a non-autodiff device.
@@ -29,21 +30,9 @@ pub struct Model {
 impl Model {
     /// Load the latest checkpoint of the run in `run`.
     pub fn load(run: &Path, device: Device) -> crate::Result<Self> {
-        let cfg_path = run.join("config.json");
-        let text = std::fs::read_to_string(&cfg_path).map_err(|e| Error::Io {
-            path: cfg_path.clone(),
-            source: e,
-        })?;
-        let config: TrainConfig = TrainConfig::from_json(&text, &cfg_path)?;
-        let latest_path = run.join("latest.json");
-        let latest: Latest =
-            serde_json::from_str(&std::fs::read_to_string(&latest_path).map_err(|e| {
-                Error::Io {
-                    path: latest_path.clone(),
-                    source: e,
-                }
-            })?)
-            .map_err(|e| Error::Checkpoint(format!("{}: {e}", latest_path.display())))?;
+        let dir = RunDir::new(run);
+        let config = dir.config()?;
+        let latest = dir.latest()?;
         let (stage1, blend) = load_networks(&config, &run.join(&latest.dir), &device)?;
         Self::with_networks(config, stage1, blend, device, latest.step)
     }

@@ -20,6 +20,7 @@ use serde::{Deserialize, Serialize};
 use crate::Error;
 use crate::loss::TrainLoss;
 use crate::nets::{BlendNet, BlendNetConfig, Stage1, Stage1Config, UNet3dConfig};
+use crate::run::{Latest, RunDir};
 use crate::volume::{Prior, Stage1Input, stage1_input};
 use mhi_render::SweepConfig;
 
@@ -247,13 +248,6 @@ pub struct StepReport {
     pub times: StepTimes,
 }
 
-/// The checkpoint pointer `latest.json`.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub(crate) struct Latest {
-    pub(crate) step: usize,
-    pub(crate) dir: String,
-}
-
 /// One training sample: the three views at the training size.
 pub struct Sample {
     /// Reference view (the MHI's grid).
@@ -308,7 +302,7 @@ impl Trainer {
         device: Device,
     ) -> crate::Result<Self> {
         config.validate()?;
-        if dir.join("config.json").exists() {
+        if RunDir::new(dir).config_path().exists() {
             return Err(Error::Config(format!(
                 "{} already holds a training run; pass --resume to continue it or choose another --run",
                 dir.display()
@@ -324,13 +318,13 @@ impl Trainer {
         let t = Self::assemble(config, dir, data_root, device, stage1, blend, loss, 0, 0.0)?;
         std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
         write_atomic(
-            &dir.join("config.json"),
+            &RunDir::new(dir).config_path(),
             serde_json::to_string_pretty(&t.config)
                 .map_err(|e| Error::Config(e.to_string()))?
                 .as_bytes(),
         )?;
-        write_atomic(&dir.join("log.csv"), CSV_HEADER.as_bytes())?;
-        write_atomic(&dir.join("val.csv"), VAL_CSV_HEADER.as_bytes())?;
+        write_atomic(&RunDir::new(dir).log_path(), CSV_HEADER.as_bytes())?;
+        write_atomic(&RunDir::new(dir).val_path(), VAL_CSV_HEADER.as_bytes())?;
         // The training curve starts at the untrained model.
         t.log_validation()?;
         Ok(t)
@@ -344,9 +338,9 @@ impl Trainer {
         weights: Option<&Path>,
         device: Device,
     ) -> crate::Result<Self> {
-        let cfg_path = dir.join("config.json");
-        let text = std::fs::read_to_string(&cfg_path).map_err(|e| io(&cfg_path, e))?;
-        let config: TrainConfig = TrainConfig::from_json(&text, &cfg_path)?;
+        let run = RunDir::new(dir);
+        let cfg_path = run.config_path();
+        let config = run.config()?;
         config.validate()?;
         let loss = if config.loss.ends_with(crate::loss::PERCEPTUAL_SUFFIX) {
             match TrainLoss::from_weights(weights, config.perceptual_weight, &device) {
@@ -362,18 +356,13 @@ impl Trainer {
         } else {
             TrainLoss::Photometric
         };
-        let latest_path = dir.join("latest.json");
-        let latest: Latest = match std::fs::read_to_string(&latest_path) {
-            Ok(t) => serde_json::from_str(&t)
-                .map_err(|e| Error::Config(format!("{}: {e}", latest_path.display())))?,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-                return Err(Error::Config(format!(
-                    "{}: the run has no checkpoint yet; start it again without --resume",
-                    dir.display()
-                )));
-            }
-            Err(e) => return Err(io(&latest_path, e)),
-        };
+        if !run.has_checkpoint() {
+            return Err(Error::Config(format!(
+                "{}: the run has no checkpoint yet; start it again without --resume",
+                dir.display()
+            )));
+        }
+        let latest = run.latest()?;
         let ck = dir.join(&latest.dir);
         let load = |what: &str| ck.join(format!("{what}.bpk"));
         let (stage1, blend) = load_networks(&config, &ck, &device)?;
@@ -707,7 +696,7 @@ impl Trainer {
 
     fn append_log(&self, r: &StepReport) -> crate::Result<()> {
         use std::io::Write as _;
-        let path = self.dir.join("log.csv");
+        let path = RunDir::new(&self.dir).log_path();
         let mut f = std::fs::OpenOptions::new()
             .append(true)
             .create(true)
@@ -768,7 +757,7 @@ impl Trainer {
             dir: name.clone(),
         };
         write_atomic(
-            &self.dir.join("latest.json"),
+            &RunDir::new(&self.dir).latest_path(),
             serde_json::to_string(&latest)
                 .map_err(|e| Error::Config(e.to_string()))?
                 .as_bytes(),
@@ -790,7 +779,7 @@ impl Trainer {
         if self.config.val_samples > 0 {
             let (learned, soft) = self.evaluate(self.config.val_samples)?;
             use std::io::Write as _;
-            let path = self.dir.join("val.csv");
+            let path = RunDir::new(&self.dir).val_path();
             let mut f = std::fs::OpenOptions::new()
                 .append(true)
                 .create(true)

@@ -50,7 +50,8 @@ fn s(p: &Path) -> String {
 
 /// Train `run` with `extra` options unless it already finished; resume it if it was interrupted.
 fn train(run: &Path, a: &DemoArgs, extra: &[&str]) -> anyhow::Result<()> {
-    if run.join("summary.json").is_file() {
+    let dir = mhi_net::RunDir::new(run);
+    if dir.finished() {
         println!("  {} already trained; reusing it", run.display());
         return Ok(());
     }
@@ -58,11 +59,11 @@ fn train(run: &Path, a: &DemoArgs, extra: &[&str]) -> anyhow::Result<()> {
     if let Some(c) = &a.cache {
         args.extend(["--cache".into(), s(c)]);
     }
-    if run.join("latest.json").is_file() {
+    if dir.has_checkpoint() {
         println!("  resuming the interrupted run {}", run.display());
         args.push("--resume".into());
     } else {
-        if run.join("config.json").is_file() {
+        if dir.started() {
             anyhow::bail!(
                 "{} holds a run that never reached its first checkpoint; remove it and run the demo again",
                 run.display()

@@ -18,5 +18,6 @@ pub fn pretrained_dir() -> PathBuf {
 /// The pretrained model's directory if it holds a model (`config.json` and `latest.json`).
 pub fn pretrained() -> Option<PathBuf> {
     let d = pretrained_dir();
-    (d.join("config.json").is_file() && d.join("latest.json").is_file()).then_some(d)
+    let run = mhi_net::RunDir::new(&d);
+    (run.started() && run.has_checkpoint()).then_some(d)
 }

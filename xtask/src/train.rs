@@ -342,7 +342,7 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         "validation": trainer.validation_source(), "data": cfg.data,
     });
     mhi_data::write_atomic(
-        &a.run.join("summary.json"),
+        &mhi_net::RunDir::new(&a.run).summary_path(),
         &serde_json::to_vec_pretty(&summary)?,
     )?;
     println!("run: {}", a.run.display());

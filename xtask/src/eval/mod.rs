@@ -722,32 +722,13 @@ fn lpips_of(
 fn training_curves(models: &[Loaded]) -> anyhow::Result<Vec<Curve>> {
     let mut curves = Vec::new();
     for m in models {
-        let path = m.run.join("val.csv");
-        let Ok(text) = std::fs::read_to_string(&path) else {
+        let rows = mhi_net::RunDir::new(&m.run).val_rows()?;
+        if rows.is_empty() {
             continue;
-        };
-        let n = m.model.normals().len();
-        let mut learned = Vec::new();
-        let mut soft = Vec::new();
-        for (i, line) in text.lines().enumerate().skip(1) {
-            let f: Vec<&str> = line.split(',').collect();
-            let parse = |k: usize| -> anyhow::Result<f64> {
-                f.get(k)
-                    .and_then(|s| s.parse::<f64>().ok())
-                    .filter(|v| v.is_finite())
-                    .with_context(|| {
-                        format!(
-                            "{}:{}: column {} is not a number",
-                            path.display(),
-                            i + 1,
-                            k + 1
-                        )
-                    })
-            };
-            let t = parse(1)?;
-            learned.push((t, parse(2)?));
-            soft.push((t, parse(3)?));
         }
+        let n = m.model.normals().len();
+        let learned: Vec<(f64, f64)> = rows.iter().map(|r| (r.elapsed_s, r.psnr_learned)).collect();
+        let soft: Vec<(f64, f64)> = rows.iter().map(|r| (r.elapsed_s, r.psnr_soft)).collect();
         let name = m
             .run
             .file_name()

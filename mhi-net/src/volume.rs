@@ -118,9 +118,8 @@ pub fn stage1_input(
         let mut logit = vec![0.0_f32; n * d * px];
         let mut correction = vec![0.0_f32; n * d * px];
         for (k, &a) in alpha.iter().enumerate() {
-            let c = a.clamp(PRIOR_EPS, 1.0 - PRIOR_EPS);
-            logit[k] = (c / (1.0 - c)).ln();
-            correction[k] = a - c;
+            logit[k] = self::logit(a);
+            correction[k] = a - a.clamp(PRIOR_EPS, 1.0 - PRIOR_EPS);
         }
         let t = |v: Vec<f32>| Tensor::from_data(TensorData::new(v, [n * d, 1, h, w]), device);
         SweepPrior {
@@ -138,30 +137,45 @@ fn fill_volume(
     reference: &image::Rgb32FImage,
     sweep: Option<&[f32]>,
 ) -> Vec<f32> {
+    use rayon::prelude::*;
     let (n, d) = (psv.n, psv.d);
     let px = psv.width as usize * psv.height as usize;
     let channels = if sweep.is_some() { 7 } else { 6 };
     let refp = reference.as_raw();
     let mut data = vec![0.0_f32; n * channels * d * px];
-    for i in 0..n {
-        for j in 0..d {
-            let at = |c: usize| ((i * channels + c) * d + j) * px;
-            let src = psv.plane_rgb(i, j);
-            for c in 0..3 {
-                let (r, s) = (at(c), at(c + 3));
-                for p in 0..px {
-                    data[r + p] = refp[3 * p + c];
-                    data[s + p] = src[3 * p + c];
+    // One chunk per (normal, channel): `d` planes of `px` values.
+    data.par_chunks_mut(d * px)
+        .enumerate()
+        .for_each(|(k, chunk)| {
+            let (i, c) = (k / channels, k % channels);
+            for (j, dst) in chunk.chunks_exact_mut(px).enumerate() {
+                match c {
+                    0..3 => {
+                        for (p, v) in dst.iter_mut().enumerate() {
+                            *v = refp[3 * p + c];
+                        }
+                    }
+                    3..6 => {
+                        let src = psv.plane_rgb(i, j);
+                        for (p, v) in dst.iter_mut().enumerate() {
+                            *v = src[3 * p + c - 3];
+                        }
+                    }
+                    _ => {
+                        if let Some(alpha) = sweep {
+                            for (v, &a) in dst.iter_mut().zip(&alpha[(i * d + j) * px..][..px]) {
+                                *v = logit(a) / LOGIT_INPUT_SCALE;
+                            }
+                        }
+                    }
                 }
             }
-            if let Some(alpha) = sweep {
-                let dst = &mut data[at(6)..][..px];
-                for (v, &a) in dst.iter_mut().zip(&alpha[(i * d + j) * px..][..px]) {
-                    let c = a.clamp(PRIOR_EPS, 1.0 - PRIOR_EPS);
-                    *v = (c / (1.0 - c)).ln() / LOGIT_INPUT_SCALE;
-                }
-            }
-        }
-    }
+        });
     data
+}
+
+/// `log(c / (1 − c))` of the alpha clamped to `[PRIOR_EPS, 1 − PRIOR_EPS]`.
+fn logit(a: f32) -> f32 {
+    let c = a.clamp(PRIOR_EPS, 1.0 - PRIOR_EPS);
+    (c / (1.0 - c)).ln()
 }

@@ -151,6 +151,10 @@ pub struct EvalArgs {
     /// need within --budget (the report's pruned-vs-exact table measures what that changes).
     #[arg(long)]
     pub exact: bool,
+    /// Also write the first triplet's MHI as a browser viewer folder here (see `cargo xtask
+    /// export`).
+    #[arg(long)]
+    pub export: Option<PathBuf>,
     /// The error budget of a pruned render, in 8-bit levels per pixel (1 = 1/255).
     #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub budget: f32,
@@ -258,6 +262,15 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         bail!(
             "{} already holds a report; pass --overwrite to replace it or choose another --out",
             a.out.display()
+        );
+    }
+    if let Some(dir) = &a.export
+        && dir.join("index.html").exists()
+        && !a.overwrite
+    {
+        bail!(
+            "--export {}: the folder already holds an exported viewer; pass --overwrite to replace it or choose another folder",
+            dir.display()
         );
     }
     if !(a.budget.is_finite() && (0.0..=255.0).contains(&a.budget)) {
@@ -428,6 +441,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let pb = crate::progress::bar(index.triplets.len() as u64 + 1, "eval");
     let mut measurements: Vec<Measurement> = Vec::new();
     let mut pruning: Vec<PruneMeasure> = Vec::new();
+    let mut orbit_rotation = None;
     let mut sample_md = String::new();
     let mut sizes_used = Vec::new();
     for (ti, t) in index.triplets.iter().enumerate() {
@@ -513,7 +527,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             )?);
         }
         if ti == 0 {
-            write_layers_and_orbit(a, &models, &rf, &sf, &tf)?;
+            orbit_rotation = write_layers_and_orbit(a, &models, &rf, &sf, &tf)?;
         }
         pb.inc(1);
     }
@@ -633,7 +647,15 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         a,
         &models,
     );
-    let md = md + &prune_markdown(&prune_rows, a);
+    let md = match orbit_rotation {
+        Some(deg) => md.replace(
+            "(radius half the input baseline):",
+            &format!(
+                "(radius half the input baseline), each turned toward the median depth of the first triplet's MHI: the rotation reaches {deg:.1}°:"
+            ),
+        ),
+        None => md,
+    } + &prune_markdown(&prune_rows, a);
     mhi_data::write_atomic(&a.out.join("report.md"), md.as_bytes())?;
     print_summary(&rows, &comparisons);
     println!("report: {}", a.out.join("report.md").display());

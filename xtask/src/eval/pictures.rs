@@ -94,7 +94,7 @@ pub(super) fn write_layers_and_orbit(
     rf: &LoadedFrame,
     sf: &LoadedFrame,
     tf: &LoadedFrame,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Option<f64>> {
     let dir = a.out.join("layers");
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let model = models
@@ -138,7 +138,7 @@ pub(super) fn write_layers_and_orbit(
     let soft = heuristic_weights_for(mhi.normals(), &rf.camera, &tf.camera, BlendHeuristic::Soft);
     let weights = match learned {
         Some(m) if mhi.n() > 1 => m.blend_weights(&r.multi_normal, &soft)?,
-        _ => soft,
+        _ => soft.clone(),
     };
     let (tw, th) = (tf.image.width(), tf.image.height());
     let tpx = (tw * th) as usize;
@@ -158,14 +158,38 @@ pub(super) fn write_layers_and_orbit(
     mhi_data::write_png(&dir.join("multi_normal.png"), &strip(&mni))?;
     mhi_data::write_png(&dir.join("weights.png"), &strip(&wts))?;
 
+    if let Some(dir) = &a.export {
+        let plan = mhi_render::plan::analyse(&mhi, &[(&tf.camera, &soft[..])], a.prune())?;
+        crate::export::write_viewer(
+            dir,
+            &mhi,
+            &plan,
+            if learned.is_some() {
+                "trained stage 1 of the first triplet (the viewer blends with Soft)"
+            } else {
+                "training-free plane sweep of the first triplet"
+            },
+            &[
+                crate::export::ViewerCamera::new("reference photo", &rf.camera),
+                crate::export::ViewerCamera::new("source photo", &sf.camera),
+            ],
+            &[crate::export::ViewerCamera::new("target photo", &tf.camera)],
+        )?;
+        println!(
+            "viewer of the first triplet: {}",
+            dir.join("index.html").display()
+        );
+    }
+    let mut rotation = None;
     if a.orbit_frames > 0 {
         let baseline = (rf.camera.center_in_world() - sf.camera.center_in_world()).length();
-        let (cams, _) = crate::views::orbit(
+        let (cams, deg) = crate::views::orbit(
             &rf.camera,
             0.5 * baseline,
             a.orbit_frames,
             crate::views::median_depth(&mhi),
         )?;
+        rotation = Some(deg);
         let mut frames = Vec::new();
         for c in &cams {
             let (img, _) = crate::views::view(&mhi, learned, c, a.prune())?;
@@ -176,5 +200,5 @@ pub(super) fn write_layers_and_orbit(
         }
         crate::views::write_gif(&a.out.join("orbit.gif"), &frames, 80)?;
     }
-    Ok(())
+    Ok(rotation)
 }

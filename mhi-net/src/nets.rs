@@ -246,11 +246,6 @@ impl Stage1 {
         self
     }
 
-    /// The pixel blocks the networks run on.
-    pub fn scale(&self) -> usize {
-        self.scale
-    }
-
     /// Set the bias of every alpha head to `bias`: a large bias starts every alpha saturated
     /// near 1 (a stress test of training; the sigmoid's gradient is then tiny but finite).
     pub fn with_head_bias(mut self, bias: f32) -> Self {

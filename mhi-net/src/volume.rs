@@ -103,7 +103,6 @@ pub fn stage1_input(
         reference.image.width() as usize,
         reference.image.height() as usize,
     );
-    let px = w * h;
     let sweep = match prior {
         Some(cfg) => {
             check_parallax(&reference.camera, &source.camera, depths)?;
@@ -111,16 +110,17 @@ pub fn stage1_input(
         }
         None => None,
     };
+    let logits: Option<Vec<f32>> = sweep
+        .as_ref()
+        .map(|a| a.iter().map(|&v| logit(v)).collect());
     let channels = if sweep.is_some() { 7 } else { 6 };
-    let volume = fill_volume(&psv, &reference.image, sweep.as_deref());
+    let volume = fill_volume(&psv, &reference.image, logits.as_deref());
     let volume = Tensor::from_data(TensorData::new(volume, [n, channels, d, h, w]), device);
-    let prior = sweep.map(|alpha| {
-        let mut logit = vec![0.0_f32; n * d * px];
-        let mut correction = vec![0.0_f32; n * d * px];
-        for (k, &a) in alpha.iter().enumerate() {
-            logit[k] = self::logit(a);
-            correction[k] = a - a.clamp(PRIOR_EPS, 1.0 - PRIOR_EPS);
-        }
+    let prior = sweep.zip(logits).map(|(alpha, logit)| {
+        let correction: Vec<f32> = alpha
+            .iter()
+            .map(|&a| a - a.clamp(PRIOR_EPS, 1.0 - PRIOR_EPS))
+            .collect();
         let t = |v: Vec<f32>| Tensor::from_data(TensorData::new(v, [n * d, 1, h, w]), device);
         SweepPrior {
             logit: t(logit),
@@ -130,17 +130,17 @@ pub fn stage1_input(
     Ok(Stage1Input { volume, prior })
 }
 
-/// `[N, C, D, H·W]` as a flat vector: reference RGB, warped RGB, then (C = 7, with `sweep`) the
-/// logit of the clamped sweep alpha over [`LOGIT_INPUT_SCALE`].
+/// `[N, C, D, H·W]` as a flat vector: reference RGB, warped RGB, then (C = 7, with the sweep's
+/// `logits`) the logits over [`LOGIT_INPUT_SCALE`].
 fn fill_volume(
     psv: &PlaneSweepVolume,
     reference: &image::Rgb32FImage,
-    sweep: Option<&[f32]>,
+    logits: Option<&[f32]>,
 ) -> Vec<f32> {
     use rayon::prelude::*;
     let (n, d) = (psv.n, psv.d);
     let px = psv.width as usize * psv.height as usize;
-    let channels = if sweep.is_some() { 7 } else { 6 };
+    let channels = if logits.is_some() { 7 } else { 6 };
     let refp = reference.as_raw();
     let mut data = vec![0.0_f32; n * channels * d * px];
     // One chunk per (normal, channel): `d` planes of `px` values.
@@ -162,9 +162,9 @@ fn fill_volume(
                         }
                     }
                     _ => {
-                        if let Some(alpha) = sweep {
-                            for (v, &a) in dst.iter_mut().zip(&alpha[(i * d + j) * px..][..px]) {
-                                *v = logit(a) / LOGIT_INPUT_SCALE;
+                        if let Some(l) = logits {
+                            for (v, &x) in dst.iter_mut().zip(&l[(i * d + j) * px..][..px]) {
+                                *v = x / LOGIT_INPUT_SCALE;
                             }
                         }
                     }

@@ -122,6 +122,21 @@ pub fn scene(n: usize, d: usize, size: u32, per_layer: bool) -> anyhow::Result<(
     Ok((Mhi::new(normals, depths, reference, color, alpha)?, target))
 }
 
+/// Soft blending, exactly and with the default render plan.
+fn soft_exact_and_pruned() -> (RenderOptions<'static>, RenderOptions<'static>) {
+    let soft = RenderOptions {
+        blend: Blend::Heuristic(BlendHeuristic::Soft),
+        ..Default::default()
+    };
+    (
+        soft,
+        RenderOptions {
+            prune: Prune::DEFAULT,
+            ..soft
+        },
+    )
+}
+
 /// Exact against pruned render time of a real MHI.
 #[derive(serde::Serialize)]
 struct RealPruning {
@@ -167,14 +182,7 @@ fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<
         &sf.image,
         &mhi_render::SweepConfig::for_short_side(size.0.min(size.1)),
     )?;
-    let soft = RenderOptions {
-        blend: Blend::Heuristic(BlendHeuristic::Soft),
-        ..Default::default()
-    };
-    let pruned_opts = RenderOptions {
-        prune: Prune::DEFAULT,
-        ..soft
-    };
+    let (soft, pruned_opts) = soft_exact_and_pruned();
     let stats = render(&mhi, &tf.camera, &pruned_opts)?.stats;
     let (exact_ms, pruned_ms) = pool.install(|| {
         let e = median_ms(a.runs, || {
@@ -330,14 +338,7 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
         .build()?;
     let (n, d, size) = (a.normals, a.planes, a.size);
     let (mhi, target) = scene(n, d, size, false)?;
-    let soft = RenderOptions {
-        blend: Blend::Heuristic(BlendHeuristic::Soft),
-        ..Default::default()
-    };
-    let pruned_opts = RenderOptions {
-        prune: Prune::DEFAULT,
-        ..soft
-    };
+    let (soft, pruned_opts) = soft_exact_and_pruned();
     let (render_ms, pruned_ms, bw) = pool.install(|| -> anyhow::Result<_> {
         let full = median_ms(a.runs, || {
             std::hint::black_box(render(&mhi, &target, &soft).expect("valid bench scene"));

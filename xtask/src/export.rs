@@ -97,14 +97,15 @@ struct Manifest<'a> {
 /// Write the viewer folder for `mhi` into `dir` (created if needed; files written atomically).
 /// Layers the plan leaves out are not written; a normal the plan drops keeps its farthest layer
 /// only (its blend weight is within the budget everywhere). `inputs` are the photos' cameras,
-/// `views` the listed target cameras (`#view=k` in the page's address shows the k-th).
+/// `views` the listed target cameras (`#view=k` in the page's address shows the k-th), each
+/// with its name.
 pub fn write_viewer(
     dir: &Path,
     mhi: &Mhi,
     plan: &ScenePlan,
     source: &str,
-    inputs: &[ViewerCamera],
-    views: &[ViewerCamera],
+    inputs: &[(&str, &Camera)],
+    views: &[(String, &Camera)],
 ) -> anyhow::Result<()> {
     let LayerColor::Shared(colour) = mhi.color() else {
         bail!("only MHIs whose layers share the reference colour can be exported");
@@ -155,17 +156,14 @@ pub fn write_viewer(
     }
     mhi_data::write_png(&dir.join("reference.png"), &rgb)?;
     let baseline = match inputs {
-        [a, b, ..] => {
-            let centre = |c: &ViewerCamera| {
-                let m = &c.cam_from_world;
-                // −Rᵀ t
-                [0, 1, 2].map(|k| -(m[k] * m[9] + m[3 + k] * m[10] + m[6 + k] * m[11]))
-            };
-            let (p, q) = (centre(a), centre(b));
-            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
-        }
+        [(_, a), (_, b), ..] => (a.center_in_world() - b.center_in_world()).length(),
         _ => 1.0,
     };
+    let inputs: Vec<ViewerCamera> = inputs
+        .iter()
+        .map(|(n, c)| ViewerCamera::new(n, c))
+        .collect();
+    let views: Vec<ViewerCamera> = views.iter().map(|(n, c)| ViewerCamera::new(n, c)).collect();
     let manifest = Manifest {
         format: "mhi-viewer-1",
         source,
@@ -184,9 +182,9 @@ pub fn write_viewer(
         atlases,
         colour: "reference.png",
         baseline,
-        inputs,
-        views,
-        path: inputs.iter().chain(views).collect(),
+        inputs: &inputs,
+        views: &views,
+        path: inputs.iter().chain(&views).collect(),
         plan,
     };
     let manifest_json = serde_json::to_string_pretty(&manifest)?;

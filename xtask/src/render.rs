@@ -312,12 +312,12 @@ fn run(a: &RenderArgs, export: Option<&std::path::Path>, views_too: bool) -> any
     }
     if let Some(dir) = export {
         let inputs = [
-            crate::export::ViewerCamera::new("reference photo", &rf.camera),
-            crate::export::ViewerCamera::new("source photo", &sf.camera),
+            ("reference photo", &rf.camera),
+            ("source photo", &sf.camera),
         ];
         let listed: Vec<_> = targets
             .iter()
-            .map(|(row, c)| crate::export::ViewerCamera::new(&format!("camera row {row}"), c))
+            .map(|(row, c)| (format!("camera row {row}"), c))
             .collect();
         let source = if model.is_some() {
             "trained stage 1 (the viewer blends with Soft: the blending network does not run in the browser)"

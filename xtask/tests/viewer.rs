@@ -197,11 +197,6 @@ fn the_browser_viewer_agrees_with_the_cpu_renderer() {
     let truth = image::open(cpu.join("view_row002.png")).unwrap().to_rgb8();
     let target = file_rows[1].camera(128, 96).unwrap();
     let covered = mhi_eval::covered_mask(&reference, &target, 100.0);
-    let to_f = |img: &image::RgbImage| {
-        image::Rgb32FImage::from_fn(128, 96, |x, y| {
-            image::Rgb(img.get_pixel(x, y).0.map(|v| f32::from(v) / 255.0))
-        })
-    };
     let black = mhi_eval::psnr_masked(&image::Rgb32FImage::new(128, 96), &to_f(&truth), &covered)
         .unwrap()
         .unwrap();

@@ -243,6 +243,8 @@ struct Meta {
     machine: String,
     threads: usize,
     date: String,
+    /// The largest rotation of the orbit GIF's cameras from the reference, in degrees.
+    orbit_rotation_deg: Option<f64>,
 }
 
 #[derive(Serialize)]
@@ -579,6 +581,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         machine: machine(),
         threads: rayon::current_num_threads(),
         date: crate::date(),
+        orbit_rotation_deg: orbit_rotation,
     };
     let json = serde_json::to_vec_pretty(&ReportJson {
         meta: &meta,
@@ -647,15 +650,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         a,
         &models,
     );
-    let md = match orbit_rotation {
-        Some(deg) => md.replace(
-            "(radius half the input baseline):",
-            &format!(
-                "(radius half the input baseline), each turned toward the median depth of the first triplet's MHI: the rotation reaches {deg:.1}°:"
-            ),
-        ),
-        None => md,
-    } + &prune_markdown(&prune_rows, a);
+    let md = md + &prune_markdown(&prune_rows, a);
     mhi_data::write_atomic(&a.out.join("report.md"), md.as_bytes())?;
     print_summary(&rows, &comparisons);
     println!("report: {}", a.out.join("report.md").display());
@@ -862,10 +857,10 @@ fn markdown(
         s,
         "Multi-normal images in the target view, and the blend weight of each (white = 1):\n\n<img src=\"layers/multi_normal.png\">\n\n<img src=\"layers/weights.png\">\n"
     );
-    if a.orbit_frames > 0 {
+    if let Some(deg) = meta.orbit_rotation_deg {
         let _ = writeln!(
             s,
-            "## Orbit\n\nA circle of cameras around the reference view (radius half the input baseline):\n\n![orbit](orbit.gif)\n"
+            "## Orbit\n\nA circle of cameras around the reference view (radius half the input baseline), each turned toward the median depth of the first triplet's MHI: the rotation reaches {deg:.1}°:\n\n![orbit](orbit.gif)\n"
         );
     }
     let _ = writeln!(s, "## Samples\n\n{samples}");

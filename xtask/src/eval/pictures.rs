@@ -170,10 +170,10 @@ pub(super) fn write_layers_and_orbit(
                 "training-free plane sweep of the first triplet"
             },
             &[
-                crate::export::ViewerCamera::new("reference photo", &rf.camera),
-                crate::export::ViewerCamera::new("source photo", &sf.camera),
+                ("reference photo", &rf.camera),
+                ("source photo", &sf.camera),
             ],
-            &[crate::export::ViewerCamera::new("target photo", &tf.camera)],
+            &[("target photo".to_string(), &tf.camera)],
         )?;
         println!(
             "viewer of the first triplet: {}",

@@ -27,16 +27,19 @@ pub enum Blend<'a> {
 /// What a render may leave out, as one error budget: the largest change, in colour units
 /// (colours in [0, 1]), that everything left out may make to any pixel of the blended view.
 ///
-/// The budget is split in three equal shares, each a bound that holds whatever the content:
-/// - **layers** — per normal, layers are skipped (faintest first) while the sum of their
-///   largest alphas stays within the share. Removing layers of alphas a_j from an
-///   over-composite changes it by at most Σ a_j (each removal changes it by a_j times a colour
-///   difference of at most 1), so the skipped mass is accumulated, not bounded per layer;
+/// The budget is spent in three parts, each a bound that holds whatever the content:
 /// - **normals** — normals are dropped (lightest first) while, at every target pixel, the sum of
-///   their blend weights stays within the share; renormalising the rest changes the blend by at
-///   most that sum;
+///   their blend weights stays within a third of the budget; renormalising the rest changes the
+///   blend by at most that sum. What the normals do not use passes on: the rest of the budget
+///   is split in half between the two other parts ([`Prune::shares_after`]);
+/// - **layers** — per render tile of [`TILE_W`] × [`TILE_H`] target pixels and per normal,
+///   layers are skipped (faintest there first) while the sum of their largest alphas over the
+///   part of the reference image the tile sees stays within the layer share. Removing layers of
+///   alphas a_j from an over-composite changes it by at most Σ a_j (each removal changes it by
+///   a_j times a colour difference of at most 1), so the skipped mass is accumulated, not
+///   bounded per layer;
 /// - **transmittance** — a pixel stops compositing once its remaining transmittance is within
-///   the share: what lies behind adds at most that much.
+///   its share: what lies behind adds at most that much.
 ///
 /// The farthest layer of each normal is never skipped, and at least one normal is kept.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -64,9 +67,17 @@ impl Prune {
         }
     }
 
-    /// The share of the budget each of the three kinds of leaving out may use.
-    pub fn share(&self) -> f32 {
+    /// The share of the budget the blend weights of dropped normals may use: a third.
+    pub fn normal_share(&self) -> f32 {
         self.budget / 3.0
+    }
+
+    /// The layer share and the transmittance share once normals whose summed weight is at most
+    /// `dropped` (≤ [`Self::normal_share`]) are left out: half of the rest each, so the three
+    /// parts add up to the budget.
+    pub fn shares_after(&self, dropped: f32) -> (f32, f32) {
+        let rest = (self.budget - dropped.clamp(0.0, self.normal_share())).max(0.0) / 2.0;
+        (rest, rest)
     }
 }
 
@@ -108,6 +119,11 @@ pub struct RenderStats {
     pub layers_pruned: usize,
     /// Normals skipped within the budget's normal share.
     pub normals_pruned: usize,
+    /// Share of the (tile, visible layer) pairs of the kept normals that were composited: the
+    /// render plans per tile of [`TILE_W`] × [`TILE_H`] target pixels and skips, in each tile,
+    /// the layers that are faint over the part of them the tile sees (1 when nothing is left
+    /// out).
+    pub composited: f32,
     /// The bound the render guarantees: the largest change any pixel can see from what was
     /// left out (skipped alpha mass of the worst normal + dropped blend weight of the worst
     /// pixel + the transmittance at which compositing stops), at most the budget.
@@ -311,6 +327,158 @@ pub(crate) fn layers_to_skip(
     (skip, mass)
 }
 
+/// Target columns of a render tile: the unit within which layers are skipped where faint.
+pub const TILE_W: usize = 32;
+/// Target rows of a render tile.
+pub const TILE_H: usize = 8;
+
+/// What one render tile composites.
+struct TilePlan {
+    /// Per normal, the layers to composite, near to far (empty for a dropped normal).
+    layers: Vec<Vec<usize>>,
+    /// The largest summed alpha any kept normal leaves out in this tile (an upper bound of the
+    /// change to any of its pixels).
+    mass: f32,
+    /// Visible layers of the kept normals (what an exact render composites here).
+    visible: usize,
+}
+
+/// Bounds `(lo, hi)` of the alpha layer `(i, j)` shows in the target rectangle `x0..x1` ×
+/// `y0..y1` through the target→reference homography `h`: the block ranges over the bounding box
+/// of the rectangle's image (its corners' images, a bilinear tap and a pixel of rounding around
+/// them). The homography's `w` is affine in the pixel, so when it is positive at the four corners
+/// the image is the convex hull of theirs, and when it is at or below [`W_EPS`] at all four no
+/// sample of the rectangle is valid (they read zero). `lo` is lowered by the weight samples near
+/// the border put on taps outside the image (zero padding reads zero); anything unclear falls
+/// back to `(0, the layer's maximum)`.
+fn footprint_range(
+    mhi: &Mhi,
+    (i, j): (usize, usize),
+    h: &[f32; 9],
+    (x0, x1): (usize, usize),
+    (y0, y1): (usize, usize),
+) -> (f32, f32) {
+    let h = h.map(f64::from);
+    let (rw, rh) = (
+        f64::from(mhi.reference().width),
+        f64::from(mhi.reference().height),
+    );
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    let mut valid = 0;
+    for (x, y) in [(x0, y0), (x1 - 1, y0), (x0, y1 - 1), (x1 - 1, y1 - 1)] {
+        let (u, v) = (x as f64 + 0.5, y as f64 + 0.5);
+        let w = h[6] * u + h[7] * v + h[8];
+        if w > f64::from(W_EPS) {
+            valid += 1;
+            let s = [
+                (h[0] * u + h[1] * v + h[2]) / w - 0.5,
+                (h[3] * u + h[4] * v + h[5]) / w - 0.5,
+            ];
+            for k in 0..2 {
+                lo[k] = lo[k].min(s[k]);
+                hi[k] = hi[k].max(s[k]);
+            }
+        }
+    }
+    if valid == 0 {
+        return (0.0, 0.0);
+    }
+    if valid < 4 || lo.iter().chain(&hi).any(|v| !v.is_finite()) {
+        return (0.0, mhi.layer_max_alpha(i, j));
+    }
+    // Taps at ⌊s⌋ and ⌊s⌋ + 1, one more pixel either side for rounding.
+    let (xa, xb) = (lo[0].floor() - 1.0, hi[0].floor() + 2.0);
+    let (ya, yb) = (lo[1].floor() - 1.0, hi[1].floor() + 2.0);
+    if xb < 0.0 || yb < 0.0 || xa > rw - 1.0 || ya > rh - 1.0 {
+        return (0.0, 0.0);
+    }
+    let clamp = |v: f64, m: f64| v.clamp(0.0, m) as usize;
+    let (a_lo, a_hi) = mhi.alpha_range_in(
+        i,
+        j,
+        (clamp(xa, rw - 1.0), clamp(ya, rh - 1.0)),
+        (clamp(xb, rw - 1.0), clamp(yb, rh - 1.0)),
+    );
+    // A sample at s < 0 puts weight −s on a tap outside the image (zero padding), one at
+    // s > size − 1 weight s − (size − 1): the inside taps keep at least (1 − that) per axis, so
+    // the sample's alpha is at least `a_lo` times their product (with room for rounding).
+    let delta = 1e-3 + 1e-6 * lo.iter().chain(&hi).fold(0.0_f64, |m, v| m.max(v.abs()));
+    let outside = |lo: f64, hi: f64, size: f64| {
+        ((delta - lo).max(0.0) + (hi + delta - (size - 1.0)).max(0.0)).min(1.0)
+    };
+    let keep = (1.0 - outside(lo[0], hi[0], rw)) * (1.0 - outside(lo[1], hi[1], rh));
+    (a_lo * keep as f32, a_hi)
+}
+
+/// Per tile of the target (row-major tiles), the layers each kept normal composites.
+///
+/// Near to far, a tile keeps an upper bound `T` of the transmittance its pixels can have in
+/// front of each layer in the pruned render (the product of `1 − lo` over the kept layers in
+/// front; skipped layers do not attenuate). Leaving out layer `k` of alpha `a_k` changes a
+/// pixel by at most `a_k · T_k`, where `T_k` is its transmittance in the pruned render, so the
+/// tile skips a layer while the summed `hi · T` stays within `share`: layers skipped everywhere
+/// (`global_skip`) always, the others when they fit. Faint layers in front and hidden layers
+/// behind an opaque surface both go. The far layer is always kept; with `share = 0` nothing is
+/// skipped.
+fn tile_plans(
+    mhi: &Mhi,
+    hs: &[Option<[f32; 9]>],
+    active: &[bool],
+    global_skip: &[Vec<bool>],
+    share: f32,
+    (tw, th): (usize, usize),
+) -> Vec<TilePlan> {
+    let (n, d) = (mhi.n(), mhi.d());
+    let (tiles_x, tiles_y) = (tw.div_ceil(TILE_W), th.div_ceil(TILE_H));
+    (0..tiles_x * tiles_y)
+        .into_par_iter()
+        .map(|k| {
+            let (x0, y0) = ((k % tiles_x) * TILE_W, (k / tiles_x) * TILE_H);
+            let (x1, y1) = ((x0 + TILE_W).min(tw), (y0 + TILE_H).min(th));
+            let mut plan = TilePlan {
+                layers: vec![Vec::new(); n],
+                mass: 0.0,
+                visible: 0,
+            };
+            for i in (0..n).filter(|i| active[*i]) {
+                // The layers skipped everywhere count first, at their largest alpha here.
+                let mut mass = 0.0_f32;
+                for j in (1..d).filter(|j| global_skip[i][*j]) {
+                    if let Some(h) = hs[i * d + j].as_ref() {
+                        mass += footprint_range(mhi, (i, j), h, (x0, x1), (y0, y1)).1;
+                    }
+                }
+                let mut t_up = 1.0_f32;
+                let mut kept = Vec::with_capacity(d);
+                for j in (0..d).rev() {
+                    let Some(h) = hs[i * d + j].as_ref() else {
+                        continue;
+                    };
+                    plan.visible += 1;
+                    if j == 0 || share <= 0.0 {
+                        kept.push(j);
+                        continue;
+                    }
+                    if global_skip[i][j] {
+                        continue;
+                    }
+                    let (lo, hi) = footprint_range(mhi, (i, j), h, (x0, x1), (y0, y1));
+                    let cost = hi * t_up;
+                    if mass + cost <= share {
+                        mass += cost;
+                    } else {
+                        kept.push(j);
+                        t_up *= 1.0 - lo;
+                    }
+                }
+                plan.mass = plan.mass.max(mass);
+                plan.layers[i] = kept;
+            }
+            plan
+        })
+        .collect()
+}
+
 /// Render the MHI from `target` (the fast path).
 ///
 /// # Errors
@@ -327,8 +495,8 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
         layers: n * d,
         ..RenderStats::default()
     };
-    let share = opts.prune.share();
-    let (active, dropped_max) = normals_to_drop(&weights, n, px, share);
+    let (active, dropped_max) = normals_to_drop(&weights, n, px, opts.prune.normal_share());
+    let (share, eps) = opts.prune.shares_after(dropped_max);
     stats.normals_pruned = active.iter().filter(|a| !**a).count();
     if stats.normals_pruned > 0 {
         for p in 0..px {
@@ -347,26 +515,28 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
     }
     let hs = layer_homographies(mhi, target);
     stats.layers_invisible = hs.iter().filter(|h| h.is_none()).count();
-    // Layers to composite, per normal, front (near) to back; the far layer is always kept.
-    // Faintest first, layers are skipped while their summed largest alpha fits the share.
-    let mut plan: Vec<Vec<(usize, [f32; 9], bool)>> = Vec::with_capacity(n);
-    let mut skipped_mass_max = 0.0_f32;
+    // Layers skipped everywhere: faintest first, while their summed largest alpha fits the
+    // share (what the scene plan stores sparsely); the far layer is always kept.
+    let mut global_skip = Vec::with_capacity(n);
     for i in 0..n {
-        let (skip, mass) = layers_to_skip(mhi, i, |j| hs[i * d + j].is_some(), share);
-        if active[i] {
-            skipped_mass_max = skipped_mass_max.max(mass);
-        }
-        let mut layers = Vec::new();
-        for j in (0..d).rev() {
-            let Some(h) = hs[i * d + j] else { continue };
-            if skip[j] {
-                stats.layers_pruned += 1;
-                continue;
-            }
-            layers.push((j, h, j == 0));
-        }
-        plan.push(layers);
+        let (skip, _) = layers_to_skip(mhi, i, |j| hs[i * d + j].is_some(), share);
+        stats.layers_pruned += skip.iter().filter(|s| **s).count();
+        global_skip.push(skip);
     }
+    let tiles_x = tw.div_ceil(TILE_W);
+    let tiles = tile_plans(mhi, &hs, &active, &global_skip, share, (tw, th));
+    let mut skipped_mass_max = 0.0_f32;
+    let (mut pairs, mut composited) = (0_usize, 0_usize);
+    for t in &tiles {
+        skipped_mass_max = skipped_mass_max.max(t.mass);
+        pairs += t.visible;
+        composited += t.layers.iter().map(Vec::len).sum::<usize>();
+    }
+    stats.composited = if pairs > 0 {
+        composited as f32 / pairs as f32
+    } else {
+        1.0
+    };
     let (rw, rh) = (
         mhi.reference().width as usize,
         mhi.reference().height as usize,
@@ -379,7 +549,6 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
         LayerColor::Shared(_) => Vec::new(),
         LayerColor::PerLayer(v) => v.iter().map(texels).collect(),
     };
-    let eps = share;
     stats.bound = skipped_mass_max + dropped_max + eps;
     let keep = opts.keep_multi_normal;
     // Each row: blended RGB (W·3) and, if kept, the N multi-normal rows (N·W·3).
@@ -399,92 +568,104 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
             let mut idx = vec![0_u32; tw];
             let stop = eps > 0.0;
             let v = y as f32 + 0.5;
+            let band = &tiles[(y / TILE_H) * tiles_x..][..tiles_x];
             for i in 0..n {
                 if !active[i] {
                     continue;
                 }
                 c.fill(0.0);
                 t.fill(1.0);
-                for &(j, h, far) in &plan[i] {
-                    let alpha = mhi.alpha_layer(i, j);
-                    let color: &[[f32; 4]] = match &shared {
-                        Some(s) => s,
-                        None => &per_layer[i * d + j],
-                    };
-                    // Pass 1 (vectorisable): sample positions of the whole row, split into the
-                    // top-left texel index and the bilinear fractions. Invalid samples (w ≤ ε)
-                    // are sent outside the image, where they read zero.
-                    let (bx, by, bw) = (h[1] * v + h[2], h[4] * v + h[5], h[7] * v + h[8]);
-                    let (wmax, hmax) = ((rw - 1) as f32, (rh - 1) as f32);
-                    for x in 0..tw {
-                        let u = x as f32 + 0.5;
-                        let w = h[6] * u + bw;
-                        let ok = w > W_EPS;
-                        let inv = 1.0 / if ok { w } else { 1.0 };
-                        let sx = if ok {
-                            (h[0] * u + bx) * inv - 0.5
-                        } else {
-                            -2.0
+                for (tile, x0) in band.iter().zip((0..tw).step_by(TILE_W)) {
+                    let x1 = (x0 + TILE_W).min(tw);
+                    for &j in &tile.layers[i] {
+                        let (h, far) = (hs[i * d + j].unwrap_or([0.0; 9]), j == 0);
+                        let alpha = mhi.alpha_layer(i, j);
+                        let color: &[[f32; 4]] = match &shared {
+                            Some(s) => s,
+                            None => &per_layer[i * d + j],
                         };
-                        let sy = if ok {
-                            (h[3] * u + by) * inv - 0.5
-                        } else {
-                            -2.0
-                        };
-                        sxs[x] = sx;
-                        sys[x] = sy;
-                        // All four taps inside: 0 ≤ sx < w − 1 and 0 ≤ sy < h − 1.
-                        let inside = sx >= 0.0 && sy >= 0.0 && sx < wmax && sy < hmax;
-                        let xi = if inside { sx as u32 } else { 0 };
-                        let yi = if inside { sy as u32 } else { 0 };
-                        fxs[x] = sx - xi as f32;
-                        fys[x] = sy - yi as f32;
-                        idx[x] = if inside {
-                            yi * rw as u32 + xi
-                        } else {
-                            u32::MAX
-                        };
-                    }
-                    // Pass 2: bilinear fetches and front-to-back compositing.
-                    for (x, (tx, cx)) in t.iter_mut().zip(c.chunks_exact_mut(3)).enumerate() {
-                        if stop && *tx <= eps {
-                            continue;
+                        // Pass 1 (vectorisable): sample positions of the tile's row, split
+                        // into the top-left texel index and the bilinear fractions. Invalid
+                        // samples (w ≤ ε) are sent outside the image, where they read zero.
+                        let (bx, by, bw) = (h[1] * v + h[2], h[4] * v + h[5], h[7] * v + h[8]);
+                        let (wmax, hmax) = ((rw - 1) as f32, (rh - 1) as f32);
+                        for x in x0..x1 {
+                            let u = x as f32 + 0.5;
+                            let w = h[6] * u + bw;
+                            let ok = w > W_EPS;
+                            let inv = 1.0 / if ok { w } else { 1.0 };
+                            let sx = if ok {
+                                (h[0] * u + bx) * inv - 0.5
+                            } else {
+                                -2.0
+                            };
+                            let sy = if ok {
+                                (h[3] * u + by) * inv - 0.5
+                            } else {
+                                -2.0
+                            };
+                            sxs[x] = sx;
+                            sys[x] = sy;
+                            // All four taps inside: 0 ≤ sx < w − 1 and 0 ≤ sy < h − 1.
+                            let inside = sx >= 0.0 && sy >= 0.0 && sx < wmax && sy < hmax;
+                            let xi = if inside { sx as u32 } else { 0 };
+                            let yi = if inside { sy as u32 } else { 0 };
+                            fxs[x] = sx - xi as f32;
+                            fys[x] = sy - yi as f32;
+                            idx[x] = if inside {
+                                yi * rw as u32 + xi
+                            } else {
+                                u32::MAX
+                            };
                         }
-                        let (a, col) = if idx[x] != u32::MAX {
-                            let i = idx[x] as usize;
-                            let (ax, ay) = (fxs[x], fys[x]);
-                            let (w00, w10, w01, w11) = (
-                                (1.0 - ax) * (1.0 - ay),
-                                ax * (1.0 - ay),
-                                (1.0 - ax) * ay,
-                                ax * ay,
-                            );
-                            let (a_top, a_bot) = (&alpha[i..i + 2], &alpha[i + rw..i + rw + 2]);
-                            let (c_top, c_bot) = (&color[i..i + 2], &color[i + rw..i + rw + 2]);
-                            let a =
-                                w00 * a_top[0] + w10 * a_top[1] + w01 * a_bot[0] + w11 * a_bot[1];
-                            let mut col = [0.0_f32; 3];
-                            for k in 0..3 {
-                                col[k] = w00 * c_top[0][k]
-                                    + w10 * c_top[1][k]
-                                    + w01 * c_bot[0][k]
-                                    + w11 * c_bot[1][k];
+                        // Pass 2: bilinear fetches and front-to-back compositing.
+                        for ((x, tx), cx) in t[x0..x1]
+                            .iter_mut()
+                            .enumerate()
+                            .map(|(k, tx)| (x0 + k, tx))
+                            .zip(c[3 * x0..3 * x1].chunks_exact_mut(3))
+                        {
+                            if stop && *tx <= eps {
+                                continue;
                             }
-                            (a, col)
-                        } else {
-                            // Border or outside: the general sampler (zero padding).
-                            sample(alpha, color, rw, rh, sxs[x], sys[x])
-                        };
-                        let a = if far { 1.0 } else { a };
-                        let ta = *tx * a;
-                        cx[0] += ta * col[0];
-                        cx[1] += ta * col[1];
-                        cx[2] += ta * col[2];
-                        *tx -= ta;
-                    }
-                    // Every pixel of the row is opaque: the farther layers cannot show.
-                    if stop && t.iter().all(|v| *v <= eps) {
-                        break;
+                            let (a, col) = if idx[x] != u32::MAX {
+                                let i = idx[x] as usize;
+                                let (ax, ay) = (fxs[x], fys[x]);
+                                let (w00, w10, w01, w11) = (
+                                    (1.0 - ax) * (1.0 - ay),
+                                    ax * (1.0 - ay),
+                                    (1.0 - ax) * ay,
+                                    ax * ay,
+                                );
+                                let (a_top, a_bot) = (&alpha[i..i + 2], &alpha[i + rw..i + rw + 2]);
+                                let (c_top, c_bot) = (&color[i..i + 2], &color[i + rw..i + rw + 2]);
+                                let a = w00 * a_top[0]
+                                    + w10 * a_top[1]
+                                    + w01 * a_bot[0]
+                                    + w11 * a_bot[1];
+                                let mut col = [0.0_f32; 3];
+                                for k in 0..3 {
+                                    col[k] = w00 * c_top[0][k]
+                                        + w10 * c_top[1][k]
+                                        + w01 * c_bot[0][k]
+                                        + w11 * c_bot[1][k];
+                                }
+                                (a, col)
+                            } else {
+                                // Border or outside: the general sampler (zero padding).
+                                sample(alpha, color, rw, rh, sxs[x], sys[x])
+                            };
+                            let a = if far { 1.0 } else { a };
+                            let ta = *tx * a;
+                            cx[0] += ta * col[0];
+                            cx[1] += ta * col[1];
+                            cx[2] += ta * col[2];
+                            *tx -= ta;
+                        }
+                        // Every pixel of the tile's row is opaque: farther layers cannot show.
+                        if stop && t[x0..x1].iter().all(|v| *v <= eps) {
+                            break;
+                        }
                     }
                 }
                 let wrow = &weights[i * px + y * tw..i * px + (y + 1) * tw];

@@ -43,11 +43,11 @@ pub mod stability;
 mod sweep;
 
 pub use cpu::{
-    Blend, Prune, RenderOptions, RenderStats, Rendered, W_EPS, combine, heuristic_weights,
-    heuristic_weights_for, render,
+    Blend, Prune, RenderOptions, RenderStats, Rendered, TILE_H, TILE_W, W_EPS, combine,
+    heuristic_weights, heuristic_weights_for, render,
 };
 pub use error::{Error, Result};
-pub use mhi::{LayerColor, Mhi};
+pub use mhi::{ALPHA_BLOCK, LayerColor, Mhi};
 pub use oracle::{PixelTruth, oracle_alpha, oracle_weights};
 pub use sweep::{
     PlaneSweepVolume, SweepConfig, alphas_from_probabilities, check_parallax, plane_sweep_volume,

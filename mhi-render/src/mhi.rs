@@ -2,6 +2,7 @@
 
 use image::Rgb32FImage;
 use mhi_geom::{Camera, NormalSet, Plane};
+use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 
@@ -29,7 +30,15 @@ pub struct Mhi {
     color: LayerColor,
     alpha: Vec<f32>,
     layer_max: Vec<f32>,
+    /// Smallest and largest alpha of each [`ALPHA_BLOCK`]² block of each layer
+    /// (`N·D × ⌈H/B⌉ × ⌈W/B⌉`).
+    block_range: Vec<(f32, f32)>,
 }
+
+/// Side, in reference pixels, of the square blocks whose smallest and largest alpha an [`Mhi`]
+/// keeps per layer ([`Mhi::alpha_range_in`]): what lets a render skip a layer where it is faint
+/// or hidden.
+pub const ALPHA_BLOCK: usize = 8;
 
 impl Mhi {
     /// Build and validate an MHI.
@@ -94,9 +103,11 @@ impl Mhi {
             context: "MHI planes".into(),
             source,
         })?;
-        let layer_max = alpha
-            .chunks(px.max(1))
-            .map(|l| l.iter().fold(0.0_f32, |m, a| m.max(*a)))
+        let block_range = block_ranges(&alpha, w as usize, h as usize);
+        let per_layer = block_range.len() / (n * d).max(1);
+        let layer_max = block_range
+            .chunks(per_layer.max(1))
+            .map(|l| l.iter().fold(0.0_f32, |m, a| m.max(a.1)))
             .collect();
         Ok(Self {
             normals,
@@ -106,6 +117,7 @@ impl Mhi {
             color,
             alpha,
             layer_max,
+            block_range,
         })
     }
 
@@ -151,6 +163,36 @@ impl Mhi {
     pub fn layer_max_alpha(&self, normal: usize, depth: usize) -> f32 {
         self.layer_max[normal * self.d() + depth]
     }
+
+    /// Bounds `(lo, hi)` of the alpha of layer `(normal, depth)` over the reference pixels
+    /// `x0..=x1` × `y0..=y1` (clamped to the image): the smallest and largest alpha of the
+    /// [`ALPHA_BLOCK`]² blocks the rectangle touches. `(1, 0)` for an empty rectangle.
+    pub fn alpha_range_in(
+        &self,
+        normal: usize,
+        depth: usize,
+        (x0, y0): (usize, usize),
+        (x1, y1): (usize, usize),
+    ) -> (f32, f32) {
+        let (w, h) = (
+            self.reference.width as usize,
+            self.reference.height as usize,
+        );
+        let (x1, y1) = (x1.min(w.saturating_sub(1)), y1.min(h.saturating_sub(1)));
+        if w == 0 || h == 0 || x0 > x1 || y0 > y1 {
+            return (1.0, 0.0);
+        }
+        let (bw, bh) = (w.div_ceil(ALPHA_BLOCK), h.div_ceil(ALPHA_BLOCK));
+        let layer = &self.block_range[(normal * self.d() + depth) * bw * bh..][..bw * bh];
+        let (mut lo, mut hi) = (1.0_f32, 0.0_f32);
+        for by in y0 / ALPHA_BLOCK..=y1 / ALPHA_BLOCK {
+            for v in &layer[by * bw + x0 / ALPHA_BLOCK..=by * bw + x1 / ALPHA_BLOCK] {
+                lo = lo.min(v.0);
+                hi = hi.max(v.1);
+            }
+        }
+        (lo, hi)
+    }
 }
 
 impl Mhi {
@@ -183,6 +225,30 @@ impl Mhi {
         }
         out
     }
+}
+
+/// The smallest and largest alpha of every [`ALPHA_BLOCK`]² block of every layer of `alpha`
+/// (layers of `w × h`), layer-major then block rows.
+fn block_ranges(alpha: &[f32], w: usize, h: usize) -> Vec<(f32, f32)> {
+    let (bw, bh) = (w.div_ceil(ALPHA_BLOCK), h.div_ceil(ALPHA_BLOCK));
+    let px = w * h;
+    if px == 0 {
+        return Vec::new();
+    }
+    let mut out = vec![(1.0_f32, 0.0_f32); alpha.len() / px * bw * bh];
+    out.par_chunks_mut(bw * bh)
+        .zip(alpha.par_chunks(px))
+        .for_each(|(blocks, layer)| {
+            for (y, row) in layer.chunks(w).enumerate() {
+                let brow = &mut blocks[(y / ALPHA_BLOCK) * bw..][..bw];
+                for (b, chunk) in brow.iter_mut().zip(row.chunks(ALPHA_BLOCK)) {
+                    *b = chunk
+                        .iter()
+                        .fold(*b, |(lo, hi), a| (lo.min(*a), hi.max(*a)));
+                }
+            }
+        });
+    out
 }
 
 fn check_size(img: &Rgb32FImage, w: u32, h: u32, what: &str) -> Result<()> {

@@ -109,7 +109,7 @@ impl ScenePlan {
 /// When a view's weights do not have `N × H × W` entries.
 pub fn analyse(mhi: &Mhi, targets: &[(&Camera, &[f32])], prune: Prune) -> Result<ScenePlan> {
     let (n, d) = (mhi.n(), mhi.d());
-    let share = prune.share();
+    let normal_share = prune.normal_share();
     let mut kept_by_some = vec![false; n];
     let mut max_weight = vec![0.0_f32; n];
     let mut dropped_worst = 0.0_f32;
@@ -124,7 +124,7 @@ pub fn analyse(mhi: &Mhi, targets: &[(&Camera, &[f32])], prune: Prune) -> Result
                 n * px
             )));
         }
-        let (active, dropped) = normals_to_drop(w, n, px, share);
+        let (active, dropped) = normals_to_drop(w, n, px, normal_share);
         for i in 0..n {
             kept_by_some[i] |= active[i];
             max_weight[i] = w[i * px..(i + 1) * px]
@@ -133,6 +133,9 @@ pub fn analyse(mhi: &Mhi, targets: &[(&Camera, &[f32])], prune: Prune) -> Result
         }
         dropped_worst = dropped_worst.max(dropped);
     }
+    // Every view's layer share is at least this one (they dropped no more weight than the
+    // worst), so what the plan leaves out, every view's render leaves out too.
+    let (share, stop) = prune.shares_after(dropped_worst);
     if targets.is_empty() {
         kept_by_some.fill(true);
     }
@@ -157,7 +160,7 @@ pub fn analyse(mhi: &Mhi, targets: &[(&Camera, &[f32])], prune: Prune) -> Result
         });
         let reason = if dropped {
             format!(
-                "left out: its blend weight is at most {:.5} in every view, within the normal share {share:.5}",
+                "left out: its blend weight is at most {:.5} in every view, within the normal share {normal_share:.5}",
                 max_weight[i]
             )
         } else {
@@ -227,6 +230,6 @@ pub fn analyse(mhi: &Mhi, targets: &[(&Camera, &[f32])], prune: Prune) -> Result
         background_fraction: background as f64 / ref_px.max(1) as f64,
         bytes_exact: shared_colour + n * d * layer_bytes,
         bytes_kept: shared_colour + layers_kept * layer_bytes,
-        bound: mass_worst + dropped_worst + share,
+        bound: mass_worst + dropped_worst + stop,
     })
 }

@@ -12,7 +12,8 @@ use mhi_render::{Blend, Mhi, Prune, RenderOptions, RenderStats, render};
 
 /// The N multi-normal images of a view. With a budget, layers are skipped and compositing stops
 /// within it (Avg weights at render time never drop a normal, so every image is there for any
-/// blend that follows; each image then moves by at most two thirds of the budget).
+/// blend that follows; each image then moves by at most the budget, and so does any blend of
+/// them).
 pub fn render_mni(
     mhi: &Mhi,
     camera: &Camera,

@@ -22,6 +22,8 @@ pub(super) struct PruneMeasure {
     layers: usize,
     layers_pruned: usize,
     normals_pruned: usize,
+    /// Share of the (tile, layer) pairs the pruned render composited.
+    composited: f32,
     bound: f32,
 }
 
@@ -61,6 +63,7 @@ impl PruneMeasure {
             layers: e.stats.layers,
             layers_pruned: e.stats.layers_pruned,
             normals_pruned: e.stats.normals_pruned,
+            composited: e.stats.composited,
             bound: e.stats.bound,
         })
     }
@@ -89,6 +92,8 @@ pub(super) struct PruneRow {
     pub(super) layers: usize,
     pub(super) layers_pruned: f64,
     pub(super) normals_pruned: f64,
+    /// Mean share of the (tile, layer) pairs composited.
+    pub(super) composited: f64,
 }
 
 pub(super) fn prune_rows(ms_: &[PruneMeasure], boot: &Bootstrap) -> Vec<PruneRow> {
@@ -132,6 +137,7 @@ pub(super) fn prune_rows(ms_: &[PruneMeasure], boot: &Bootstrap) -> Vec<PruneRow
                 layers: g.first().map_or(0, |m| m.layers),
                 layers_pruned: mean(&|m| m.layers_pruned as f64),
                 normals_pruned: mean(&|m| m.normals_pruned as f64),
+                composited: mean(&|m| f64::from(m.composited)),
                 method,
                 normals,
                 planes,
@@ -154,14 +160,14 @@ pub(super) fn prune_markdown(rows: &[PruneRow], a: &EvalArgs) -> String {
     }
     let _ = writeln!(
         s,
-        "Every MHI below was rendered twice per view, exactly and within the error budget of {:.2} 8-bit level(s) per pixel (the default; `--exact` turns it off). |Δ| compares the two renders (not the ground truth); ΔPSNR is the change of covered PSNR against the ground truth (mean, 95 % interval); time is the render (and Soft blend) alone; layers and normals are those left out per view. The report's other tables score the pruned renders.\n",
+        "Every MHI below was rendered twice per view, exactly and within the error budget of {:.2} 8-bit level(s) per pixel (the default; `--exact` turns it off). |Δ| compares the two renders (not the ground truth); ΔPSNR is the change of covered PSNR against the ground truth (mean, 95 % interval); time is the render (and Soft blend) alone; layers and normals are those left out of the whole view, \"composited\" the share of (tile of 32 x 8 pixels, layer) pairs the pruned render still composited (it skips layers tile by tile where they are faint or hidden). The report's other tables score the pruned renders.\n",
         a.budget
     );
-    s += "| method | views | max \\|Δ\\| | mean \\|Δ\\| | bound | pixels over bound | ΔPSNR dB | exact ms | pruned ms | speed-up | layers left out | normals left out |\n|---|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|\n";
+    s += "| method | views | max \\|Δ\\| | mean \\|Δ\\| | bound | pixels over bound | ΔPSNR dB | exact ms | pruned ms | speed-up | layers left out | normals left out | composited |\n|---|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|\n";
     for r in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.5} | {:.6} | {:.5} | {} | {} | {:.1} | {:.1} | {:.2}x | {:.1} of {} | {:.2} of {} |",
+            "| {} | {} | {:.5} | {:.6} | {:.5} | {} | {} | {:.1} | {:.1} | {:.2}x | {:.1} of {} | {:.2} of {} | {:.0} % |",
             config_label(&r.method, r.normals, r.planes),
             r.views,
             r.max_abs,
@@ -177,7 +183,8 @@ pub(super) fn prune_markdown(rows: &[PruneRow], a: &EvalArgs) -> String {
             r.layers_pruned,
             r.layers,
             r.normals_pruned,
-            r.normals
+            r.normals,
+            100.0 * r.composited
         );
     }
     s.push('\n');

@@ -130,15 +130,14 @@ impl Model {
             reference,
             source,
             self.config.prior_sweep(w, h).as_ref(),
+            self.stage1_scale(w as usize, h as usize),
             &self.device,
         )
     }
 
     /// Stage 1: alphas `N · D · H · W` (normal-major, far first) from its input.
     pub fn alphas(&self, input: Stage1Input) -> crate::Result<Vec<f32>> {
-        let [_, _, _, h, w] = input.volume.dims();
-        let stage1 = self.stage1.clone().with_scale(self.stage1_scale(w, h));
-        let v: Vec<f32> = alphas_of(&stage1, input)
+        let v: Vec<f32> = alphas_of(&self.stage1, input)
             .into_data()
             .try_to_vec()
             .map_err(|e| Error::NonFinite(format!("stage-1 output: {e:?}")))?;

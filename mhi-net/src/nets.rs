@@ -265,8 +265,8 @@ impl Stage1 {
         if self.scale <= 1 {
             return self.forward_full(volume);
         }
-        use burn::tensor::module::{avg_pool2d, interpolate};
-        use burn::tensor::ops::{AvgPoolOptions, InterpolateMode, InterpolateOptions};
+        use burn::tensor::module::avg_pool2d;
+        use burn::tensor::ops::AvgPoolOptions;
         let [n, c, d, h, w] = volume.dims();
         let s = self.scale;
         let small = avg_pool2d(
@@ -280,7 +280,22 @@ impl Stage1 {
             },
         );
         let [_, _, hs, ws] = small.dims();
-        let out = self.forward_full(small.reshape([n, c, d, hs, ws]));
+        self.forward_blocks(small.reshape([n, c, d, hs, ws]), (h, w))
+    }
+
+    /// Alphas (or residuals) of all normals from a volume already averaged over pixel blocks
+    /// (e.g. [`crate::Stage1Input`]), brought back to `(height, width)` bilinearly.
+    ///
+    /// # Shapes
+    /// `[N, C, D, h, w]` → `[N, 1, D, height, width]`
+    pub fn forward_blocks(&self, small: Tensor<5>, (h, w): (usize, usize)) -> Tensor<5> {
+        use burn::tensor::module::interpolate;
+        use burn::tensor::ops::{InterpolateMode, InterpolateOptions};
+        let [n, _, d, hs, ws] = small.dims();
+        let out = self.forward_full(small);
+        if (hs, ws) == (h, w) {
+            return out;
+        }
         let mut opts = InterpolateOptions::new(InterpolateMode::Bilinear);
         opts.output_size = Some([h, w]);
         interpolate(out.reshape([n, d, hs, ws]), opts).reshape([n, 1, d, h, w])

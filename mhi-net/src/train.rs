@@ -690,6 +690,7 @@ impl Trainer {
             &s.reference,
             &s.source,
             self.config.prior_sweep(w, h).as_ref(),
+            self.config.stage1.scale,
             device,
         )
     }
@@ -875,8 +876,11 @@ impl Trainer {
 /// # Shapes
 /// `volume [N, C, D, H, W]` → `[N·D, 1, H, W]`
 pub(crate) fn alphas_of(stage1: &Stage1, input: Stage1Input) -> Tensor<4> {
-    let [n, _, d, h, w] = input.volume.dims();
-    let out = stage1.forward(input.volume).reshape([n * d, 1, h, w]);
+    let [n, _, d, _, _] = input.volume.dims();
+    let (h, w) = input.size;
+    let out = stage1
+        .forward_blocks(input.volume, input.size)
+        .reshape([n * d, 1, h, w]);
     match input.prior {
         Some(p) => p.apply(out),
         None => out,

@@ -62,11 +62,17 @@ impl SweepPrior {
 /// Everything stage 1 takes for one pair.
 #[derive(Debug, Clone)]
 pub struct Stage1Input {
-    /// `[N, C, D, H, W]`: reference RGB, warped source RGB and (with the prior) the logit
-    /// channel divided by [`LOGIT_INPUT_SCALE`].
+    /// `[N, C, D, H / block, W / block]`: reference RGB, warped source RGB and (with the prior)
+    /// the logit channel divided by [`LOGIT_INPUT_SCALE`], each averaged over `block × block`
+    /// pixel blocks (the input of a U-Net run on blocks, [`crate::Stage1Config::scale`]; the
+    /// average is taken here, on the CPU, so the full-resolution volume is never built).
     pub volume: Tensor<5>,
-    /// The sweep prior, when the model has one.
+    /// The sweep prior, when the model has one, at full resolution.
     pub prior: Option<SweepPrior>,
+    /// Side of the pixel blocks the volume is averaged over (1: full resolution).
+    pub block: usize,
+    /// The full-resolution `(height, width)` stage 1's output is brought back to.
+    pub size: (usize, usize),
 }
 
 /// The oriented cost volume `[N, 6, D, H, W]`: per normal and plane, the reference image and the
@@ -78,19 +84,31 @@ pub fn cost_volume(
     source: &LoadedFrame,
     device: &Device,
 ) -> crate::Result<Tensor<5>> {
-    Ok(stage1_input(normals, depths, reference, source, None, device)?.volume)
+    Ok(stage1_input(normals, depths, reference, source, None, 1, device)?.volume)
 }
 
-/// Stage 1's input for a pair: the cost volume, and with `prior` (the sweep's constants on this
-/// image size) the sweep's logits as a seventh channel and as the base of the residual.
+/// Stage 1's input for a pair: the cost volume averaged over `block × block` pixel blocks, and
+/// with `prior` (the sweep's constants on this image size) the sweep's logits as a seventh
+/// channel and, at full resolution, as the base of the residual.
+///
+/// # Errors
+/// Geometry the sweep cannot use, or an image side not divisible by `block`.
 pub fn stage1_input(
     normals: &NormalSet,
     depths: &[f64],
     reference: &LoadedFrame,
     source: &LoadedFrame,
     prior: Option<&SweepConfig>,
+    block: usize,
     device: &Device,
 ) -> crate::Result<Stage1Input> {
+    let block = block.max(1);
+    let (iw, ih) = (reference.image.width(), reference.image.height());
+    if !(iw as usize).is_multiple_of(block) || !(ih as usize).is_multiple_of(block) {
+        return Err(crate::Error::Config(format!(
+            "image size {iw}x{ih}: stage 1 on {block} x {block} pixel blocks needs both sides divisible by {block}"
+        )));
+    }
     let psv = plane_sweep_volume(
         normals,
         depths,
@@ -114,8 +132,9 @@ pub fn stage1_input(
         .as_ref()
         .map(|a| a.iter().map(|&v| logit(v)).collect());
     let channels = if sweep.is_some() { 7 } else { 6 };
-    let volume = fill_volume(&psv, &reference.image, logits.as_deref());
-    let volume = Tensor::from_data(TensorData::new(volume, [n, channels, d, h, w]), device);
+    let volume = fill_volume(&psv, &reference.image, logits.as_deref(), block);
+    let (hb, wb) = (h / block, w / block);
+    let volume = Tensor::from_data(TensorData::new(volume, [n, channels, d, hb, wb]), device);
     let prior = sweep.zip(logits).map(|(alpha, logit)| {
         let correction: Vec<f32> = alpha
             .iter()
@@ -127,45 +146,68 @@ pub fn stage1_input(
             correction: t(correction),
         }
     });
-    Ok(Stage1Input { volume, prior })
+    Ok(Stage1Input {
+        volume,
+        prior,
+        block,
+        size: (h, w),
+    })
 }
 
-/// `[N, C, D, H·W]` as a flat vector: reference RGB, warped RGB, then (C = 7, with the sweep's
-/// `logits`) the logits over [`LOGIT_INPUT_SCALE`].
+/// `[N, C, D, (H / block)·(W / block)]` as a flat vector: reference RGB, warped RGB, then
+/// (C = 7, with the sweep's `logits`) the logits over [`LOGIT_INPUT_SCALE`], each averaged over
+/// `block × block` pixel blocks (the sides divide by `block`).
 fn fill_volume(
     psv: &PlaneSweepVolume,
     reference: &image::Rgb32FImage,
     logits: Option<&[f32]>,
+    block: usize,
 ) -> Vec<f32> {
     use rayon::prelude::*;
     let (n, d) = (psv.n, psv.d);
-    let px = psv.width as usize * psv.height as usize;
+    let (w, h) = (psv.width as usize, psv.height as usize);
+    let px = w * h;
+    let (wb, hb) = (w / block, h / block);
+    let pxb = wb * hb;
     let channels = if logits.is_some() { 7 } else { 6 };
     let refp = reference.as_raw();
-    let mut data = vec![0.0_f32; n * channels * d * px];
-    // One chunk per (normal, channel): `d` planes of `px` values.
-    data.par_chunks_mut(d * px)
+    let norm = 1.0 / (block * block) as f32;
+    // The block average of `value(p)` over pixel indices `p` of the full grid, into `dst`.
+    let pool = |dst: &mut [f32], value: &dyn Fn(usize) -> f32| {
+        if block == 1 {
+            for (p, v) in dst.iter_mut().enumerate() {
+                *v = value(p);
+            }
+            return;
+        }
+        dst.fill(0.0);
+        for y in 0..h {
+            let row = &mut dst[(y / block) * wb..][..wb];
+            for x in 0..w {
+                row[x / block] += value(y * w + x);
+            }
+        }
+        for v in dst.iter_mut() {
+            *v *= norm;
+        }
+    };
+    let mut data = vec![0.0_f32; n * channels * d * pxb];
+    // One chunk per (normal, channel): `d` planes of `pxb` values.
+    data.par_chunks_mut(d * pxb)
         .enumerate()
         .for_each(|(k, chunk)| {
             let (i, c) = (k / channels, k % channels);
-            for (j, dst) in chunk.chunks_exact_mut(px).enumerate() {
+            for (j, dst) in chunk.chunks_exact_mut(pxb).enumerate() {
                 match c {
-                    0..3 => {
-                        for (p, v) in dst.iter_mut().enumerate() {
-                            *v = refp[3 * p + c];
-                        }
-                    }
+                    0..3 => pool(dst, &|p| refp[3 * p + c]),
                     3..6 => {
                         let src = psv.plane_rgb(i, j);
-                        for (p, v) in dst.iter_mut().enumerate() {
-                            *v = src[3 * p + c - 3];
-                        }
+                        pool(dst, &|p| src[3 * p + c - 3]);
                     }
                     _ => {
                         if let Some(l) = logits {
-                            for (v, &x) in dst.iter_mut().zip(&l[(i * d + j) * px..][..px]) {
-                                *v = x / LOGIT_INPUT_SCALE;
-                            }
+                            let l = &l[(i * d + j) * px..][..px];
+                            pool(dst, &|p| l[p] / LOGIT_INPUT_SCALE);
                         }
                     }
                 }

@@ -27,6 +27,31 @@ fn config() -> TrainConfig {
     c.with_sweep_prior()
 }
 
+/// A synthetic training set of `scenes` scenes of `frames` frames in a temporary folder.
+fn synthetic(
+    scenes: usize,
+    frames: usize,
+    (width, height): (u32, u32),
+    seed: u64,
+) -> tempfile::TempDir {
+    let d = tempfile::tempdir().unwrap();
+    generate(
+        &SynthConfig {
+            scenes,
+            frames,
+            width,
+            height,
+            seed,
+            test_fraction: 0.0,
+            ..SynthConfig::default()
+        },
+        d.path(),
+        &|| {},
+    )
+    .unwrap();
+    d
+}
+
 fn options(blend: Blend<'_>) -> RenderOptions<'_> {
     RenderOptions {
         blend,
@@ -37,21 +62,7 @@ fn options(blend: Blend<'_>) -> RenderOptions<'_> {
 
 #[test]
 fn an_untrained_model_on_the_sweep_prior_renders_the_sweep_with_soft() {
-    let d = tempfile::tempdir().unwrap();
-    generate(
-        &SynthConfig {
-            scenes: 2,
-            frames: 6,
-            width: 48,
-            height: 48,
-            seed: 3,
-            test_fraction: 0.0,
-            ..SynthConfig::default()
-        },
-        d.path(),
-        &|| {},
-    )
-    .unwrap();
+    let d = synthetic(2, 6, (48, 48), 3);
     let cfg = config();
     assert_eq!(cfg.prior, Prior::Sweep);
     let mut trainer = Trainer::new(
@@ -143,4 +154,76 @@ fn an_untrained_model_on_the_sweep_prior_renders_the_sweep_with_soft() {
         moved > 1e-3,
         "training left the alphas where the sweep put them ({moved})"
     );
+}
+
+/// Stage 1's input averaged over pixel blocks on the CPU (what training and inference feed a
+/// U-Net run on blocks) gives what the network gives when it averages the full-resolution
+/// volume itself: same pooled volume, same alphas.
+#[test]
+fn the_block_averaged_volume_matches_stage_1s_own_pooling() {
+    let d = synthetic(1, 3, (48, 32), 5);
+    let mut cfg = config();
+    cfg.width = 48;
+    cfg.height = 32;
+    let trainer = Trainer::new(
+        cfg.clone(),
+        &d.path().join("run"),
+        d.path(),
+        TrainLoss::Photometric,
+        Device::flex().autodiff(),
+    )
+    .unwrap();
+    let s = trainer.sample(0).unwrap();
+    let device = Device::flex();
+    let prior = cfg.prior_sweep(48, 32);
+    let input = |block| {
+        mhi_net::stage1_input(
+            &mhi_geom::NormalSet::paper_subset(3).unwrap(),
+            &mhi_geom::depths_linear_in_disparity(1.0, 100.0, 6).unwrap(),
+            &s.reference,
+            &s.source,
+            prior.as_ref(),
+            block,
+            &device,
+        )
+        .unwrap()
+    };
+    let (full, pooled) = (input(1), input(4));
+    assert_eq!(pooled.volume.dims(), [3, 7, 6, 8, 12]);
+    assert_eq!(pooled.size, (32, 48));
+    // Stage 1 with scale 4 on the full volume (it pools) and on the CPU-pooled one.
+    // (An alpha head: a zero-initialised residual head would compare zeros.)
+    let mut sc = cfg.stage1.clone();
+    sc.scale = 4;
+    sc.unet.residual = false;
+    let stage1 = sc.init(&device);
+    let a: Vec<f32> = stage1
+        .forward(full.volume)
+        .into_data()
+        .try_to_vec()
+        .unwrap();
+    let b: Vec<f32> = stage1
+        .forward_blocks(pooled.volume, pooled.size)
+        .into_data()
+        .try_to_vec()
+        .unwrap();
+    assert_eq!(a.len(), 3 * 6 * 32 * 48);
+    let worst = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0_f32, f32::max);
+    assert!(worst <= 1e-5, "alphas differ by {worst}");
+    // A side the block does not divide is an error, not a cropped volume.
+    let err = mhi_net::stage1_input(
+        &mhi_geom::NormalSet::paper_subset(3).unwrap(),
+        &mhi_geom::depths_linear_in_disparity(1.0, 100.0, 6).unwrap(),
+        &s.reference,
+        &s.source,
+        None,
+        5,
+        &device,
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("divisible by 5"), "{err}");
 }

@@ -39,6 +39,15 @@ fn random_mhi(n: usize, d: usize, w: u32, h: u32, per_layer: bool, seed: u64) ->
     Mhi::new(normals, depths, reference, color, alpha).unwrap()
 }
 
+/// The largest |a − b| over pixels and channels.
+fn largest_change(a: &Rgb32FImage, b: &Rgb32FImage) -> f32 {
+    a.as_raw()
+        .iter()
+        .zip(b.as_raw())
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
+}
+
 fn target(mhi: &Mhi, yaw_deg: f64, pitch_deg: f64, t: DVec3) -> Camera {
     let r = DMat3::from_rotation_y(yaw_deg.to_radians())
         * DMat3::from_rotation_x(pitch_deg.to_radians());
@@ -130,13 +139,7 @@ fn identity_view_of_opaque_front_layer_is_the_reference_image() {
     )
     .unwrap();
     let out = render(&mhi, mhi.reference(), &RenderOptions::default()).unwrap();
-    let err = out
-        .image
-        .as_raw()
-        .iter()
-        .zip(img.as_raw())
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f32::max);
+    let err = largest_change(&out.image, &img);
     assert!(err < 1e-5, "{err}");
 }
 
@@ -199,13 +202,7 @@ fn pruning_changes_little_and_reports_what_it_skipped() {
     .unwrap();
     assert_eq!(pruned.stats.layers_pruned, 40);
     assert_eq!(pruned.stats.normals_pruned, 4, "{:?}", pruned.stats);
-    let err = pruned
-        .image
-        .as_raw()
-        .iter()
-        .zip(hard.image.as_raw())
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f32::max);
+    let err = largest_change(&pruned.image, &hard.image);
     assert!(
         err <= 1.0 / 255.0 + 1e-6,
         "pruning changed a pixel by {err}"
@@ -369,13 +366,7 @@ fn the_error_budget_bounds_the_total_change_of_every_pixel() {
     // Not every faint layer may go: together they exceed the share many times over.
     assert!(s.layers_pruned < 3 * (d - 1), "{s:?}");
     assert!(s.bound <= prune.budget + 1e-7, "{s:?}");
-    let worst = pruned
-        .image
-        .as_raw()
-        .iter()
-        .zip(exact.image.as_raw())
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0_f32, f32::max);
+    let worst = largest_change(&pruned.image, &exact.image);
     assert!(
         worst <= s.bound + 1e-6,
         "a pixel moved by {worst}, beyond the bound {}",
@@ -482,13 +473,7 @@ fn layers_are_skipped_per_tile_where_faint_or_hidden() {
     assert_eq!(s.layers_pruned, 0, "{s:?}");
     assert!(s.composited <= 0.6, "{s:?}");
     assert!(s.bound <= Prune::DEFAULT.budget + 1e-7, "{s:?}");
-    let worst = pruned
-        .image
-        .as_raw()
-        .iter()
-        .zip(exact.image.as_raw())
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0_f32, f32::max);
+    let worst = largest_change(&pruned.image, &exact.image);
     assert!(
         worst <= s.bound + 1e-6,
         "a pixel moved by {worst}, beyond the bound {}",

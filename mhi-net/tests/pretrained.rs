@@ -1,6 +1,6 @@
 //! The pretrained model shipped in `models/` loads, is the model its MODEL.md describes (the
 //! sweep prior, N = 5, D = 16), and a copy whose config.json no longer matches its weights is
-//! refused with a message that says so.
+//! refused with a message that says so; the MPI baseline beside it shares its recipe.
 
 use std::path::{Path, PathBuf};
 
@@ -54,4 +54,19 @@ fn the_shipped_model_loads_and_a_mismatched_config_is_refused() {
         err.contains("does not match this run's config.json"),
         "{err}"
     );
+}
+
+/// The learned MPI baseline shipped beside it has the same recipe with one normal.
+#[test]
+fn the_mpi_baseline_loads_with_the_same_recipe() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/mpi-n1d16");
+    let mpi = Model::load(&dir, Device::flex()).unwrap();
+    let mhi = Model::load(&shipped(), Device::flex()).unwrap();
+    assert_eq!((mpi.normals().len(), mpi.depths().len()), (1, 16));
+    let (a, b) = (mpi.config(), mhi.config());
+    assert_eq!(a.prior, b.prior);
+    assert_eq!((a.width, a.height, a.lr), (b.width, b.height, b.lr));
+    assert_eq!(a.phase1_steps, b.phase1_steps);
+    assert_eq!(a.stage1.scale, b.stage1.scale);
+    assert_eq!(mpi.step(), b.phase1_steps);
 }

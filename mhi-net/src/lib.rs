@@ -62,7 +62,10 @@ pub use train::{
     CSV_HEADER, EvalScores, GRAD_CLIP_NORM, Sample, StepReport, StepTimes, TrainConfig, Trainer,
     VAL_CSV_HEADER, init_models,
 };
-pub use view::{BlendChoice, MhiSource, MhiTimes, View, ViewSynthesis, render_view};
+pub use view::{
+    BlendChoice, Blended, MhiSource, MhiTimes, MultiNormal, View, ViewSynthesis, multi_normal,
+    render_view,
+};
 pub use volume::{
     LOGIT_INPUT_SCALE, PRIOR_EPS, Prior, Stage1Input, SweepPrior, cost_volume, stage1_input,
 };

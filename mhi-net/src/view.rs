@@ -1,6 +1,8 @@
-//! View synthesis as one capability: make an MHI from a posed pair (a trained model or the
-//! training-free sweep), then render any target view of it with a blend choice and an error
-//! budget, getting the image, the multi-normal images, the weights and the time split.
+//! View synthesis as one capability: make an MHI from a posed pair (a trained model, the
+//! training-free sweep or, for synthetic scenes, the exact geometry), then render any target view
+//! of it with a blend choice and an error budget, getting the image, the multi-normal images, the
+//! weights and the time split. [`multi_normal`] renders a view's multi-normal images once for
+//! several blends.
 
 use std::time::Instant;
 
@@ -8,8 +10,8 @@ use image::Rgb32FImage;
 use mhi_data::LoadedFrame;
 use mhi_geom::{BlendHeuristic, Camera, NormalSet};
 use mhi_render::{
-    Blend, Mhi, Prune, RenderOptions, RenderStats, SweepConfig, combine, heuristic_weights_for,
-    render, sweep_mhi,
+    Blend, LayerColor, Mhi, PixelTruth, Prune, RenderOptions, RenderStats, SweepConfig, combine,
+    heuristic_weights_for, oracle_alpha, render, sweep_mhi,
 };
 
 use crate::Model;
@@ -27,6 +29,16 @@ pub enum MhiSource<'a> {
         /// The sweep's constants (see [`SweepConfig::for_short_side`]).
         config: SweepConfig,
     },
+    /// Alphas from the exact geometry of a synthetic scene (what the reference camera sees at
+    /// each pixel): the best an MHI of these planes can do. The source view is not used.
+    Oracle {
+        /// The normals.
+        normals: NormalSet,
+        /// Plane depths, far first.
+        depths: Vec<f64>,
+        /// Per reference pixel (row-major), the surface it sees, if any.
+        truth: &'a [Option<PixelTruth>],
+    },
 }
 
 /// How the multi-normal images of a view are blended.
@@ -41,9 +53,10 @@ pub enum BlendChoice {
 /// Time of making an MHI, in milliseconds.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct MhiTimes {
-    /// Plane-sweep volume (and, for the sweep, its alphas).
+    /// Plane-sweep volume (and, for the sweep, its alphas and the MHI; for the oracle, the MHI
+    /// from the ground truth).
     pub volume_ms: f64,
-    /// Stage 1 (0 for the sweep).
+    /// Stage 1 and building its MHI (0 for the sweep and the oracle).
     pub network_ms: f64,
 }
 
@@ -79,7 +92,7 @@ impl<'a> ViewSynthesis<'a> {
     pub fn model(&self) -> Option<&'a Model> {
         match &self.source {
             MhiSource::Learned(m) => Some(*m),
-            MhiSource::Sweep { .. } => None,
+            MhiSource::Sweep { .. } | MhiSource::Oracle { .. } => None,
         }
     }
 
@@ -96,12 +109,12 @@ impl<'a> ViewSynthesis<'a> {
                 let volume_ms = ms(t0);
                 let t1 = Instant::now();
                 let alphas = m.alphas(input)?;
-                let network_ms = ms(t1);
+                let mhi = m.mhi(reference, alphas)?;
                 Ok((
-                    m.mhi(reference, alphas)?,
+                    mhi,
                     MhiTimes {
                         volume_ms,
-                        network_ms,
+                        network_ms: ms(t1),
                     },
                 ))
             }
@@ -118,6 +131,36 @@ impl<'a> ViewSynthesis<'a> {
                     &source.camera,
                     &source.image,
                     config,
+                )?;
+                Ok((
+                    mhi,
+                    MhiTimes {
+                        volume_ms: ms(t0),
+                        network_ms: 0.0,
+                    },
+                ))
+            }
+            MhiSource::Oracle {
+                normals,
+                depths,
+                truth,
+            } => {
+                let px = reference.image.width() as usize * reference.image.height() as usize;
+                if truth.len() != px {
+                    return Err(crate::Error::Config(format!(
+                        "oracle: {} pixels of ground truth for a {}x{} reference",
+                        truth.len(),
+                        reference.image.width(),
+                        reference.image.height()
+                    )));
+                }
+                let alpha = oracle_alpha(normals, depths, &reference.camera, truth);
+                let mhi = Mhi::new(
+                    normals.clone(),
+                    depths.clone(),
+                    reference.camera,
+                    LayerColor::Shared(reference.image.clone()),
+                    alpha,
                 )?;
                 Ok((
                     mhi,
@@ -155,31 +198,17 @@ pub fn render_view(
     prune: Prune,
 ) -> crate::Result<View> {
     let model = model.filter(|_| mhi.n() > 1);
-    let t0 = Instant::now();
     match (blend, model) {
         (BlendChoice::Learned, Some(m)) => {
-            let r = render(
-                mhi,
-                target,
-                &RenderOptions {
-                    blend: Blend::Heuristic(BlendHeuristic::Avg),
-                    prune,
-                    keep_multi_normal: true,
-                },
-            )?;
-            let render_ms = ms(t0);
-            let t1 = Instant::now();
-            let soft =
-                heuristic_weights_for(mhi.normals(), mhi.reference(), target, BlendHeuristic::Soft);
-            let weights = m.blend_weights(&r.multi_normal, &soft)?;
-            let image = combine(&r.multi_normal, &weights);
+            let mn = multi_normal(mhi, target, prune)?;
+            let b = mn.blend(mhi, Some(m), target, BlendChoice::Learned)?;
             Ok(View {
-                image,
-                multi_normal: r.multi_normal,
-                weights,
-                stats: r.stats,
-                render_ms,
-                blend_ms: ms(t1),
+                image: b.image,
+                multi_normal: mn.images,
+                weights: b.weights,
+                stats: mn.stats,
+                render_ms: mn.render_ms,
+                blend_ms: b.blend_ms,
             })
         }
         (choice, _) => {
@@ -187,6 +216,7 @@ pub fn render_view(
                 BlendChoice::Heuristic(h) => h,
                 BlendChoice::Learned => BlendHeuristic::Soft,
             };
+            let t0 = Instant::now();
             let r = render(
                 mhi,
                 target,
@@ -205,6 +235,79 @@ pub fn render_view(
                 blend_ms: 0.0,
             })
         }
+    }
+}
+
+/// The multi-normal images of one view, rendered once and blended any number of ways.
+#[derive(Debug, Clone)]
+pub struct MultiNormal {
+    /// The N multi-normal images, colours in [0, 1] (not clipped).
+    pub images: Vec<Rgb32FImage>,
+    /// What the render left out and the bound it kept (every image within it).
+    pub stats: RenderStats,
+    /// Warp and composite.
+    pub render_ms: f64,
+}
+
+/// One blend of a view's multi-normal images.
+#[derive(Debug, Clone)]
+pub struct Blended {
+    /// The blended view.
+    pub image: Rgb32FImage,
+    /// The blend weights, `N × H × W`, normalised per pixel.
+    pub weights: Vec<f32>,
+    /// Blend weights and blending.
+    pub blend_ms: f64,
+}
+
+/// The N multi-normal images of `mhi` seen from `target`, within `prune`'s budget: layers are
+/// skipped and compositing stops within it (Avg weights at render time never drop a normal, so
+/// every image is there for any blend that follows; each image moves by at most the budget,
+/// and so does any blend of them).
+pub fn multi_normal(mhi: &Mhi, target: &Camera, prune: Prune) -> crate::Result<MultiNormal> {
+    let t0 = Instant::now();
+    let r = render(
+        mhi,
+        target,
+        &RenderOptions {
+            blend: Blend::Heuristic(BlendHeuristic::Avg),
+            prune,
+            keep_multi_normal: true,
+        },
+    )?;
+    Ok(MultiNormal {
+        images: r.multi_normal,
+        stats: r.stats,
+        render_ms: ms(t0),
+    })
+}
+
+impl MultiNormal {
+    /// Blend the images for `target` (the view they were rendered for): by `model`'s network
+    /// ([`BlendChoice::Learned`] with a model and N > 1), else by a heuristic (Soft when the
+    /// learned blend is asked without a model).
+    pub fn blend(
+        &self,
+        mhi: &Mhi,
+        model: Option<&Model>,
+        target: &Camera,
+        choice: BlendChoice,
+    ) -> crate::Result<Blended> {
+        let t0 = Instant::now();
+        let heuristic = |h| heuristic_weights_for(mhi.normals(), mhi.reference(), target, h);
+        let weights = match (choice, model.filter(|_| mhi.n() > 1)) {
+            (BlendChoice::Learned, Some(m)) => {
+                m.blend_weights(&self.images, &heuristic(BlendHeuristic::Soft))?
+            }
+            (BlendChoice::Learned, None) => heuristic(BlendHeuristic::Soft),
+            (BlendChoice::Heuristic(h), _) => heuristic(h),
+        };
+        let image = combine(&self.images, &weights);
+        Ok(Blended {
+            image,
+            weights,
+            blend_ms: ms(t0),
+        })
     }
 }
 

@@ -11,8 +11,8 @@ use image::Rgb32FImage;
 use mhi_data::LoadedFrame;
 use mhi_eval::plot::{Axes, Curve};
 use mhi_geom::{BlendHeuristic, Camera, NormalSet, depths_linear_in_disparity};
-use mhi_net::{Model, TrainConfig};
-use mhi_render::{Blend, RenderOptions, SweepConfig, render, sweep_mhi};
+use mhi_net::{BlendChoice, MhiSource, Model, TrainConfig, ViewSynthesis};
+use mhi_render::{Blend, Prune, RenderOptions, SweepConfig, render, sweep_mhi};
 use rand::{Rng, SeedableRng};
 
 use crate::bench::median_ms;
@@ -118,22 +118,13 @@ fn time_one(
                 let mut config = TrainConfig::for_normals(n);
                 config.planes = d;
                 let model = Model::untrained(config, Device::flex())?;
+                let synth = ViewSynthesis::new(MhiSource::Learned(&model));
                 median_ms(runs, || {
-                    let v = model.stage1_input(&rf, &sf).expect("bench pair");
-                    let a = model.alphas(v).expect("finite alphas");
-                    let mhi = model.mhi(&rf, a).expect("valid MHI");
-                    let r = crate::views::render_mni(&mhi, &target, mhi_render::Prune::NONE)
-                        .expect("bench scene");
-                    let soft = mhi_render::heuristic_weights_for(
-                        model.normals(),
-                        &rf.camera,
-                        &target,
-                        BlendHeuristic::Soft,
-                    );
+                    let (mhi, _) = synth.mhi(&rf, &sf).expect("bench pair");
                     std::hint::black_box(
-                        model
-                            .blend_weights(&r.multi_normal, &soft)
-                            .expect("finite weights"),
+                        synth
+                            .render(&mhi, &target, BlendChoice::Learned, Prune::NONE)
+                            .expect("bench scene"),
                     );
                 })
             }

@@ -6,29 +6,9 @@ use std::path::Path;
 use anyhow::Context;
 use glam::{DMat3, DVec3};
 use image::{Rgb32FImage, RgbImage, RgbaImage};
-use mhi_geom::{BlendHeuristic, Camera, RigidTransform};
+use mhi_geom::{Camera, RigidTransform};
 use mhi_net::Model;
-use mhi_render::{Blend, Mhi, Prune, RenderOptions, RenderStats, render};
-
-/// The N multi-normal images of a view. With a budget, layers are skipped and compositing stops
-/// within it (Avg weights at render time never drop a normal, so every image is there for any
-/// blend that follows; each image then moves by at most the budget, and so does any blend of
-/// them).
-pub fn render_mni(
-    mhi: &Mhi,
-    camera: &Camera,
-    prune: Prune,
-) -> anyhow::Result<mhi_render::Rendered> {
-    Ok(render(
-        mhi,
-        camera,
-        &RenderOptions {
-            blend: Blend::Heuristic(BlendHeuristic::Avg),
-            prune,
-            keep_multi_normal: true,
-        },
-    )?)
-}
+use mhi_render::{Mhi, Prune, RenderStats};
 
 /// One novel view of an MHI within `prune`'s budget: blended by a trained model's network
 /// (N > 1), or by Soft, where normals the view does not need are also left out.
@@ -41,8 +21,6 @@ pub fn view(
     let v = mhi_net::render_view(mhi, model, cam, mhi_net::BlendChoice::Learned, prune)?;
     Ok((v.image, v.stats))
 }
-
-pub use mhi_render::combine;
 
 /// Clamp every channel to [0, 1] (what is shown and scored).
 pub fn clipped(img: &Rgb32FImage) -> Rgb32FImage {

@@ -3,22 +3,21 @@
 
 use super::*;
 
-/// A blended view of a trained run: the shared time split plus this blend's time since `t0`.
+/// A blended view of a trained run: the shared time split plus this blend's time.
 pub(super) fn blended(
     method: &str,
     normals: usize,
     planes: usize,
-    image: Rgb32FImage,
+    b: Blended,
     base: Times,
-    t0: Instant,
 ) -> Output {
     Output {
         method: method.into(),
         normals,
         planes,
-        image,
+        image: b.image,
         times: Times {
-            blend_ms: ms(t0),
+            blend_ms: b.blend_ms,
             ..base
         },
         exact: None,
@@ -90,20 +89,13 @@ impl Ctx<'_> {
                 continue;
             }
             let d = model.depths().len();
-            let t0 = Instant::now();
-            let volume = model.stage1_input(rf, sf)?;
-            let volume_ms = ms(t0);
-            let t1 = Instant::now();
-            let alphas = model.alphas(volume)?;
-            let network_ms = ms(t1);
-            let t2 = Instant::now();
-            let mhi = model.mhi(rf, alphas)?;
-            let r = render_mni(&mhi, &tf.camera, a.prune())?;
-            let render_ms = ms(t2);
+            let synth = ViewSynthesis::new(MhiSource::Learned(model));
+            let (mhi, t) = synth.mhi(rf, sf)?;
+            let mn = multi_normal(&mhi, &tf.camera, a.prune())?;
             let base = Times {
-                volume_ms,
-                network_ms,
-                render_ms,
+                volume_ms: t.volume_ms,
+                network_ms: t.network_ms,
+                render_ms: mn.render_ms,
                 blend_ms: 0.0,
             };
             if is_mpi {
@@ -111,59 +103,43 @@ impl Ctx<'_> {
                     method: "mpi".into(),
                     normals: 1,
                     planes: d,
-                    image: r.multi_normal[0].clone(),
+                    image: mn.images[0].clone(),
                     times: base,
                     exact: None,
                 });
                 continue;
             }
-            let mni = &r.multi_normal;
+            let blend = |choice| mn.blend(&mhi, Some(model), &tf.camera, choice);
             if self.wants(Method::Learned) {
-                let t3 = Instant::now();
-                let soft = heuristic_weights_for(
-                    model.normals(),
-                    &rf.camera,
-                    &tf.camera,
-                    BlendHeuristic::Soft,
-                );
-                let w = model.blend_weights(mni, &soft)?;
-                out.push(blended("learned", n, d, combine(mni, &w), base, t3));
+                let b = blend(BlendChoice::Learned)?;
+                out.push(blended("learned", n, d, b, base));
             }
             for (which, name, h) in heuristics {
                 if !self.wants(which) {
                     continue;
                 }
-                let t3 = Instant::now();
-                let w = heuristic_weights_for(model.normals(), &rf.camera, &tf.camera, h);
-                let mut o = blended(name, n, d, combine(mni, &w), base, t3);
+                let b = blend(BlendChoice::Heuristic(h))?;
+                let weights = b.weights.clone();
+                let mut o = blended(name, n, d, b, base);
                 if which == Method::Soft && a.prune().budget > 0.0 {
                     // The same MHI's multi-normal images rendered exactly, Soft-blended.
-                    let t4 = Instant::now();
-                    let e = render_mni(&mhi, &tf.camera, Prune::NONE)?;
-                    let render_ms = ms(t4);
+                    let e = multi_normal(&mhi, &tf.camera, Prune::NONE)?;
                     o.exact = Some(ExactCheck {
-                        image: combine(&e.multi_normal, &w),
-                        render_ms,
-                        stats: r.stats,
+                        image: combine(&e.images, &weights),
+                        render_ms: e.render_ms,
+                        stats: mn.stats,
                     });
                 }
                 out.push(o);
             }
         }
+        let made = |source: MhiSource<'_>| ViewSynthesis::new(source).mhi(rf, sf);
         for &(n, d) in self.sweep_grid {
-            let normals = NormalSet::paper_subset(n)?;
-            let depths = depths_linear_in_disparity(a.near, a.far, d)?;
-            let t0 = Instant::now();
-            let mhi = sweep_mhi(
-                &normals,
-                &depths,
-                &rf.camera,
-                &rf.image,
-                &sf.camera,
-                &sf.image,
-                &self.sweep_config,
-            )?;
-            let volume_ms = ms(t0);
+            let (mhi, t) = made(MhiSource::Sweep {
+                normals: NormalSet::paper_subset(n)?,
+                depths: depths_linear_in_disparity(a.near, a.far, d)?,
+                config: self.sweep_config,
+            })?;
             let (image, render_ms, exact) = render_soft(&mhi, tf, a.prune())?;
             out.push(Output {
                 method: "sweep".into(),
@@ -171,7 +147,7 @@ impl Ctx<'_> {
                 planes: d,
                 image,
                 times: Times {
-                    volume_ms,
+                    volume_ms: t.volume_ms,
                     network_ms: 0.0,
                     render_ms,
                     blend_ms: 0.0,
@@ -183,16 +159,11 @@ impl Ctx<'_> {
             let scene = load_scene(&seq.dir().join("scene.json"))?;
             let truth = crate::experiments::truth_of(&scene, &rf.camera);
             for &(n, d) in self.oracle_grid {
-                let normals = NormalSet::paper_subset(n)?;
-                let depths = depths_linear_in_disparity(a.near, a.far, d)?;
-                let alpha = oracle_alpha(&normals, &depths, &rf.camera, &truth);
-                let mhi = Mhi::new(
-                    normals,
-                    depths,
-                    rf.camera,
-                    LayerColor::Shared(rf.image.clone()),
-                    alpha,
-                )?;
+                let (mhi, _) = made(MhiSource::Oracle {
+                    normals: NormalSet::paper_subset(n)?,
+                    depths: depths_linear_in_disparity(a.near, a.far, d)?,
+                    truth: &truth,
+                })?;
                 let (image, render_ms, exact) = render_soft(&mhi, tf, a.prune())?;
                 out.push(Output {
                     method: "oracle".into(),

@@ -15,11 +15,10 @@ use mhi_eval::Bootstrap;
 use mhi_eval::plot::{Curve, TimePoint};
 use mhi_eval::report::{self, Comparison, Config, Measurement, Row, Times, config_label};
 use mhi_geom::{BlendHeuristic, NormalSet, depths_linear_in_disparity};
-use mhi_net::Model;
 use mhi_net::backbone::{Backbone, Net};
-use mhi_render::heuristic_weights_for;
+use mhi_net::{BlendChoice, Blended, MhiSource, Model, ViewSynthesis, multi_normal};
 use mhi_render::{
-    Blend, LayerColor, Mhi, Prune, RenderOptions, SweepConfig, oracle_alpha, render, sweep_mhi,
+    Blend, Mhi, Prune, RenderOptions, SweepConfig, combine, heuristic_weights_for, render,
 };
 use serde::Serialize;
 
@@ -27,7 +26,7 @@ mod methods;
 mod pictures;
 mod pruning;
 
-use crate::views::{clipped, combine, enlarge, factor_for, layer_picture, render_mni, strip};
+use crate::views::{clipped, enlarge, factor_for, layer_picture, strip};
 use methods::Ctx;
 use pictures::{write_layers_and_orbit, write_samples};
 use pruning::{PruneMeasure, prune_markdown, prune_rows};

@@ -101,24 +101,16 @@ pub(super) fn write_layers_and_orbit(
         .iter()
         .find(|m| m.model.normals().len() > 1)
         .or(models.first());
-    let (mhi, learned) = match model {
-        Some(m) => {
-            let alphas = m.model.alphas(m.model.stage1_input(rf, sf)?)?;
-            (m.model.mhi(rf, alphas)?, Some(&m.model))
-        }
-        None => (
-            sweep_mhi(
-                &NormalSet::paper(),
-                &depths_linear_in_disparity(a.near, a.far, 8)?,
-                &rf.camera,
-                &rf.image,
-                &sf.camera,
-                &sf.image,
-                &SweepConfig::default(),
-            )?,
-            None,
-        ),
+    let source = match model {
+        Some(m) => MhiSource::Learned(&m.model),
+        None => MhiSource::Sweep {
+            normals: NormalSet::paper(),
+            depths: depths_linear_in_disparity(a.near, a.far, 8)?,
+            config: SweepConfig::default(),
+        },
     };
+    let synth = ViewSynthesis::new(source);
+    let (mhi, _) = synth.mhi(rf, sf)?;
     let (w, h) = (rf.image.width(), rf.image.height());
     let px = (w * h) as usize;
     let f = factor_for(w, 96);
@@ -134,16 +126,14 @@ pub(super) fn write_layers_and_orbit(
             .collect();
         mhi_data::write_png(&dir.join(format!("normal_{i}.png")), &strip(&tiles))?;
     }
-    let r = render_mni(&mhi, &tf.camera, Prune::NONE)?;
-    let soft = heuristic_weights_for(mhi.normals(), &rf.camera, &tf.camera, BlendHeuristic::Soft);
-    let weights = match learned {
-        Some(m) if mhi.n() > 1 => m.blend_weights(&r.multi_normal, &soft)?,
-        _ => soft.clone(),
-    };
+    let r = multi_normal(&mhi, &tf.camera, Prune::NONE)?;
+    let weights = r
+        .blend(&mhi, synth.model(), &tf.camera, BlendChoice::Learned)?
+        .weights;
     let (tw, th) = (tf.image.width(), tf.image.height());
     let tpx = (tw * th) as usize;
     let mni: Vec<_> = r
-        .multi_normal
+        .images
         .iter()
         .map(|m| enlarge(&mhi_data::to_u8(&clipped(m)), f))
         .collect();
@@ -159,12 +149,14 @@ pub(super) fn write_layers_and_orbit(
     mhi_data::write_png(&dir.join("weights.png"), &strip(&wts))?;
 
     if let Some(dir) = &a.export {
+        let soft =
+            heuristic_weights_for(mhi.normals(), &rf.camera, &tf.camera, BlendHeuristic::Soft);
         let plan = mhi_render::plan::analyse(&mhi, &[(&tf.camera, &soft[..])], a.prune())?;
         crate::export::write_viewer(
             dir,
             &mhi,
             &plan,
-            if learned.is_some() {
+            if synth.model().is_some() {
                 "trained stage 1 of the first triplet (the viewer blends with Soft)"
             } else {
                 "training-free plane sweep of the first triplet"
@@ -192,7 +184,7 @@ pub(super) fn write_layers_and_orbit(
         rotation = Some(deg);
         let mut frames = Vec::new();
         for c in &cams {
-            let (img, _) = crate::views::view(&mhi, learned, c, a.prune())?;
+            let (img, _) = crate::views::view(&mhi, synth.model(), c, a.prune())?;
             frames.push(enlarge(
                 &mhi_data::to_u8(&clipped(&img)),
                 factor_for(img.width(), 256),

@@ -7,6 +7,8 @@ use anyhow::{Context, bail};
 use clap::Args;
 use mhi_data::{Dataset, RotationBin, SynthConfig, TripletIndex, TripletKind};
 
+use crate::common::parse_size;
+
 /// Options of `cargo xtask synth`.
 #[derive(Args, Debug)]
 pub struct SynthArgs {
@@ -38,60 +40,6 @@ pub struct SynthArgs {
     /// Replace an existing dataset in --out (otherwise a non-empty split is refused).
     #[arg(long)]
     pub overwrite: bool,
-}
-
-/// Parse a normal count: the paper's sets have N = 1 (the MPI), 2, 3 or 5 normals.
-pub fn parse_normals(s: &str) -> Result<usize, String> {
-    match s.trim().parse::<usize>() {
-        Ok(n @ (1 | 2 | 3 | 5)) => Ok(n),
-        _ => Err(format!(
-            "{s:?}: choose 1 (an MPI), 2, 3 or 5 normals, the paper's normal sets"
-        )),
-    }
-}
-
-/// Refuse work whose layers would not fit in memory, before allocating them: an N × D MHI at
-/// `width × height` with its plane-sweep volume takes about 24 bytes per layer pixel (alpha,
-/// warped colour and validity in f32, plus the costs). The limit is the memory available now
-/// (`MemAvailable` of /proc/meminfo; 16 GiB where that cannot be read).
-pub fn check_memory(what: &str, width: u32, height: u32, layers: usize) -> anyhow::Result<()> {
-    let need = 24.0 * f64::from(width) * f64::from(height) * layers as f64;
-    let avail = std::fs::read_to_string("/proc/meminfo")
-        .ok()
-        .and_then(|t| {
-            t.lines()
-                .find(|l| l.starts_with("MemAvailable:"))
-                .and_then(|l| l.split_whitespace().nth(1))
-                .and_then(|v| v.parse::<f64>().ok())
-        })
-        .map_or(16.0 * 1024.0 * 1024.0 * 1024.0, |kib| kib * 1024.0);
-    if need > 0.8 * avail {
-        anyhow::bail!(
-            "{what}: {layers} layers of {width}x{height} need about {:.1} GB, but {:.1} GB of memory is available; choose a smaller size or fewer planes",
-            need / 1e9,
-            avail / 1e9
-        );
-    }
-    Ok(())
-}
-
-/// Parse `WIDTHxHEIGHT`.
-pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("size {s:?} must look like 256x256"))?;
-    let w: u32 = w
-        .trim()
-        .parse()
-        .map_err(|_| format!("width {w:?} is not a positive integer"))?;
-    let h: u32 = h
-        .trim()
-        .parse()
-        .map_err(|_| format!("height {h:?} is not a positive integer"))?;
-    if w == 0 || h == 0 {
-        return Err(format!("size {s:?} has no pixels"));
-    }
-    Ok((w, h))
 }
 
 fn non_empty_dir(p: &Path) -> bool {

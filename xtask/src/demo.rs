@@ -38,30 +38,29 @@ struct Wrap<T: Args> {
     inner: T,
 }
 
-fn parse<T: Args>(args: &[String]) -> anyhow::Result<T> {
-    let mut v = vec!["xtask".to_string()];
-    v.extend(args.iter().cloned());
-    Ok(Wrap::<T>::try_parse_from(v)?.inner)
+/// A command's options with every default it declares (what `cargo xtask <command>` with no
+/// option gets), for the demo to set fields on: typed, and no default repeated here.
+fn defaults<T: Args>() -> T {
+    Wrap::<T>::try_parse_from(["xtask"])
+        .expect("every option of the commands the demo runs has a default")
+        .inner
 }
 
-fn s(p: &Path) -> String {
-    p.display().to_string()
-}
-
-/// Train `run` with `extra` options unless it already finished; resume it if it was interrupted.
-fn train(run: &Path, a: &DemoArgs, extra: &[&str]) -> anyhow::Result<()> {
+/// Train `run` (`set` adjusts the default options) unless it already finished; resume it if
+/// it was interrupted.
+fn train(run: &Path, a: &DemoArgs, set: impl FnOnce(&mut TrainArgs)) -> anyhow::Result<()> {
     let dir = mhi_net::RunDir::new(run);
     if dir.finished() {
         println!("  {} already trained; reusing it", run.display());
         return Ok(());
     }
-    let mut args = vec!["--run".to_string(), s(run), "--data".into(), s(&a.data)];
-    if let Some(c) = &a.cache {
-        args.extend(["--cache".into(), s(c)]);
-    }
+    let mut t = defaults::<TrainArgs>();
+    t.run = run.to_path_buf();
+    t.data = vec![a.data.clone()];
+    t.cache.clone_from(&a.cache);
     if dir.has_checkpoint() {
         println!("  resuming the interrupted run {}", run.display());
-        args.push("--resume".into());
+        t.resume = true;
     } else {
         if dir.started() {
             anyhow::bail!(
@@ -69,9 +68,9 @@ fn train(run: &Path, a: &DemoArgs, extra: &[&str]) -> anyhow::Result<()> {
                 run.display()
             );
         }
-        args.extend(extra.iter().map(|x| x.to_string()));
+        set(&mut t);
     }
-    crate::train::train(&parse::<TrainArgs>(&args)?)
+    crate::train::train(&t)
 }
 
 /// `cargo xtask demo`.
@@ -84,7 +83,7 @@ pub fn demo(a: &DemoArgs) -> anyhow::Result<()> {
         );
     };
     stage(1, "synthetic scenes");
-    crate::experiments::ensure_synthetic(&a.data)?;
+    crate::common::ensure_synthetic(&a.data)?;
     stage(
         2,
         "pretrained weights (VGG16 for the perceptual loss, AlexNet for LPIPS)",
@@ -92,11 +91,9 @@ pub fn demo(a: &DemoArgs) -> anyhow::Result<()> {
     if a.offline {
         println!("  --offline: skipped");
     } else {
-        let mut args = Vec::new();
-        if let Some(c) = &a.cache {
-            args.extend(["--cache".to_string(), s(c)]);
-        }
-        if let Err(e) = crate::weights::weights(&parse::<WeightsArgs>(&args)?) {
+        let mut w = defaults::<WeightsArgs>();
+        w.cache.clone_from(&a.cache);
+        if let Err(e) = crate::weights::weights(&w) {
             eprintln!(
                 "note: the pretrained weights could not be fetched ({e:#}); the demo goes on without LPIPS and trains with L1 + SSIM"
             );
@@ -107,54 +104,64 @@ pub fn demo(a: &DemoArgs) -> anyhow::Result<()> {
         3,
         "training the MHI model (N = 5 normals, default settings)",
     );
-    train(&runs.join("mhi"), a, &[])?;
+    train(&runs.join("mhi"), a, |_| {})?;
     stage(
         4,
         "training the MPI baseline (N = 1, same code and budget per step)",
     );
-    train(
-        &runs.join("mpi"),
-        a,
-        &["--normals", "1", "--phase2-steps", "0"],
-    )?;
+    train(&runs.join("mpi"), a, |t| {
+        t.normals = 1;
+        t.phase2_steps = 0;
+    })?;
     stage(
         5,
         "evaluating every method (and the pretrained model) on the synthetic test scenes",
     );
-    let mut args = vec![
-        "--data".to_string(),
-        s(&a.data),
-        "--run".into(),
-        s(&runs.join("mhi")),
-        "--run".into(),
-        s(&runs.join("mpi")),
-        "--out".into(),
-        s(&a.out.join("report")),
-        "--overwrite".into(),
-        "--per-sequence".into(),
-        a.per_sequence.to_string(),
-        // Twice the training size: the CPU-sized models are trained at 64 x 64, the report is
-        // read at 128 x 128 (the synthetic frames are 256 x 256; `eval` alone defaults to them).
-        "--size".into(),
-        "128x128".into(),
-    ];
-    if let Some(c) = &a.cache {
-        args.extend(["--cache".into(), s(c)]);
-    }
+    let mut e = defaults::<EvalArgs>();
+    e.data = vec![a.data.clone()];
+    e.runs = vec![runs.join("mhi"), runs.join("mpi")];
+    e.out = a.out.join("report");
+    e.overwrite = true;
+    e.per_sequence = a.per_sequence;
+    // Twice the training size: the CPU-sized models are trained at 64 x 64, the report is read
+    // at 128 x 128 (the synthetic frames are 256 x 256; `eval` alone defaults to them).
+    e.size = Some((128, 128));
+    e.cache.clone_from(&a.cache);
     // The pretrained model beside the short runs (its own N and D; compared with the sweep of
     // the same N and D in the report).
     match crate::models::pretrained() {
-        Some(p) => args.extend(["--run".into(), s(&p)]),
+        Some(p) => e.runs.push(p),
         None => println!(
             "  no pretrained model at {}; the report shows the short runs only",
             crate::models::pretrained_dir().display()
         ),
     }
-    crate::eval::eval(&parse::<EvalArgs>(&args)?)?;
+    crate::eval::eval(&e)?;
     println!(
         "demo finished in {:.1} min; report: {}",
         t0.elapsed().as_secs_f64() / 60.0,
         a.out.join("report").join("report.md").display()
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The demo sets fields on each command's defaults: every option of those commands must
+    /// keep a default (a required one would stop the demo), and the defaults are the commands'.
+    #[test]
+    fn the_commands_the_demo_runs_have_defaults_for_every_option() {
+        let t = defaults::<TrainArgs>();
+        assert_eq!(
+            t.phase1_steps,
+            mhi_net::TrainConfig::for_normals(5).phase1_steps
+        );
+        let e = defaults::<EvalArgs>();
+        assert_eq!(e.per_sequence, 2);
+        assert!(e.runs.is_empty() && !e.overwrite);
+        let w = defaults::<WeightsArgs>();
+        assert!(w.cache.is_none());
+    }
 }

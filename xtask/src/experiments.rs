@@ -1,20 +1,22 @@
 //! `oracle` and `sweep`: rendering experiments on synthetic scenes and on real posed photos.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, bail};
 use clap::Args;
 use glam::DVec3;
 use image::Rgb32FImage;
-use mhi_data::{Dataset, Fit, RotationBin, SynthConfig, TripletIndex, load_frame, load_scene};
+use mhi_data::{Dataset, Fit, RotationBin, TripletIndex, load_frame, load_scene};
 use mhi_geom::{BlendHeuristic, Camera, NormalSet, depths_linear_in_disparity};
 use mhi_render::{
-    Blend, LayerColor, Mhi, PixelTruth, Prune, RenderOptions, SweepConfig, oracle_alpha,
-    oracle_weights, render, sweep_mhi,
+    Blend, LayerColor, Mhi, Prune, RenderOptions, SweepConfig, oracle_alpha, oracle_weights,
+    render, sweep_mhi,
 };
 use serde::Serialize;
+
+use crate::common::{ensure_synthetic, error_map, save_png, truth_of};
 
 /// Options of `cargo xtask oracle`.
 #[derive(Args, Debug)]
@@ -102,39 +104,6 @@ struct Row {
     ms_per_view: f64,
     pruned_psnr: f64,
     pruned_ms_per_view: f64,
-}
-
-/// Make sure a synthetic dataset exists at `root` (generating the default one if not).
-pub fn ensure_synthetic(root: &Path) -> anyhow::Result<()> {
-    let interrupted = root.join(mhi_data::INCOMPLETE_MARKER).exists();
-    if root.join("test").is_dir() && !interrupted {
-        return Ok(());
-    }
-    if interrupted {
-        eprintln!(
-            "{} holds an interrupted synthetic set: generating it again",
-            root.display()
-        );
-    }
-    eprintln!(
-        "no synthetic data at {}: generating the default set (100 scenes, 256x256)",
-        root.display()
-    );
-    let config = SynthConfig::default();
-    std::fs::create_dir_all(root).with_context(|| format!("cannot create {}", root.display()))?;
-    let pb = crate::progress::bar((config.scenes * config.frames) as u64, "synth");
-    mhi_data::generate(&config, root, &|| pb.inc(1))?;
-    pb.finish_and_clear();
-    Ok(())
-}
-
-/// Per reference pixel, the true surface normal and depth of a synthetic scene.
-pub fn truth_of(scene: &mhi_data::Scene, cam: &Camera) -> Vec<Option<PixelTruth>> {
-    scene
-        .ground_truth(cam)
-        .into_iter()
-        .map(|t| t.map(|(normal, depth)| PixelTruth { normal, depth }))
-        .collect()
 }
 
 /// `cargo xtask oracle`.
@@ -382,11 +351,6 @@ fn best_per_pixel(candidates: &[Rgb32FImage], truth: &Rgb32FImage) -> Rgb32FImag
     })
 }
 
-pub fn save_png(path: &Path, img: &Rgb32FImage) -> anyhow::Result<()> {
-    mhi_data::write_png(path, &mhi_data::to_u8(img))?;
-    Ok(())
-}
-
 /// Options of `cargo xtask sweep`.
 #[derive(Args, Debug)]
 pub struct SweepArgs {
@@ -409,20 +373,10 @@ pub struct SweepArgs {
     #[arg(long, default_value_t = 4)]
     pub target: usize,
     /// Working resolution WIDTHxHEIGHT (frames are resized, intrinsics follow).
-    #[arg(long, default_value = "384x256", value_parser = crate::data::parse_size)]
+    #[arg(long, default_value = "384x256", value_parser = crate::common::parse_size)]
     pub size: (u32, u32),
-    /// Number of normals (paper subsets: 1, 2, 3 or 5).
-    #[arg(long, default_value_t = 5, value_parser = crate::data::parse_normals)]
-    pub normals: usize,
-    /// Number of planes per normal.
-    #[arg(long, default_value_t = 32)]
-    pub planes: usize,
-    /// Nearest plane depth.
-    #[arg(long, default_value_t = 1.0)]
-    pub near: f64,
-    /// Farthest plane depth.
-    #[arg(long, default_value_t = 100.0)]
-    pub far: f64,
+    #[command(flatten)]
+    pub grid: crate::common::PlaneArgs,
     /// Softmax temperature of the winner-take-all over depths (lower is sharper).
     #[arg(long, default_value_t = SweepConfig::default().temperature)]
     pub temperature: f32,
@@ -475,11 +429,11 @@ pub fn sweep(a: &SweepArgs) -> anyhow::Result<()> {
         &seq.frames[a.src],
         &seq.frames[a.target],
     ])?;
-    crate::data::check_memory("--size", a.size.0, a.size.1, a.normals * a.planes)?;
+    crate::common::check_memory("--size", a.size.0, a.size.1, a.grid.normals * a.grid.planes)?;
     let load = |i: usize| load_frame(&seq.frames[i], Some(a.size), Fit::Stretch);
     let (rf, sf, tf) = (load(a.reference)?, load(a.src)?, load(a.target)?);
-    let normals = NormalSet::paper_subset(a.normals)?;
-    let depths = depths_linear_in_disparity(a.near, a.far, a.planes)?;
+    let normals = a.grid.normal_set()?;
+    let depths = a.grid.depths()?;
     let cfg = SweepConfig {
         temperature: a.temperature,
         window_radius: a.window,
@@ -554,7 +508,7 @@ pub fn sweep(a: &SweepArgs) -> anyhow::Result<()> {
     }
     let summary = serde_json::json!({
         "sequence": seq.name, "reference": a.reference, "source": a.src, "target": a.target,
-        "size": [a.size.0, a.size.1], "normals": normals.len(), "planes": a.planes,
+        "size": [a.size.0, a.size.1], "normals": normals.len(), "planes": a.grid.planes,
         "sweep": {"psnr": sp, "ssim": ss, "build_ms": build_ms, "render_ms": render_ms},
         "nearest": {"view": nearest_name, "psnr": np, "ssim": ns},
     });
@@ -571,7 +525,7 @@ pub fn sweep(a: &SweepArgs) -> anyhow::Result<()> {
         a.size.0,
         a.size.1,
         normals.len(),
-        a.planes
+        a.grid.planes
     );
     println!(
         "  sweep MHI (soft blend): PSNR {sp:.2} dB  SSIM {ss:.4}  (build {build_ms:.0} ms, render {render_ms:.0} ms)"
@@ -579,13 +533,4 @@ pub fn sweep(a: &SweepArgs) -> anyhow::Result<()> {
     println!("  nearest input ({nearest_name}):  PSNR {np:.2} dB  SSIM {ns:.4}");
     println!("images and summary.json in {}", a.out.display());
     Ok(())
-}
-
-/// |a − b| averaged over channels, scaled ×4 and shown in grey (so a 0.25 error is white).
-pub fn error_map(a: &Rgb32FImage, b: &Rgb32FImage) -> Rgb32FImage {
-    Rgb32FImage::from_fn(a.width(), a.height(), |x, y| {
-        let (p, q) = (a.get_pixel(x, y).0, b.get_pixel(x, y).0);
-        let e = ((p[0] - q[0]).abs() + (p[1] - q[1]).abs() + (p[2] - q[2]).abs()) / 3.0 * 4.0;
-        image::Rgb([e, e, e])
-    })
 }

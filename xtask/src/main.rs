@@ -1,6 +1,7 @@
 //! `cargo xtask`: the project's command line. Each task lives in its own module.
 
 mod bench;
+mod common;
 mod data;
 mod demo;
 mod eval;
@@ -8,12 +9,9 @@ mod experiments;
 mod export;
 mod metrics;
 mod models;
-mod ops;
 mod progress;
 mod render;
-mod scaling;
 mod stability;
-mod step;
 mod train;
 mod views;
 mod weights;

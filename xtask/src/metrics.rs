@@ -41,7 +41,7 @@ pub fn metrics(a: &MetricsArgs) -> anyhow::Result<()> {
         Ok(s) => println!("SSIM       {s:.5}"),
         Err(e) => println!("SSIM       n/a ({e})"),
     }
-    let dir = crate::weights::cache_dir(a.cache.as_deref()).join("weights");
+    let dir = crate::common::cache_dir(a.cache.as_deref()).join("weights");
     let device = Device::flex();
     let tx = mhi_render::diff::image_to_tensor(&x, &device);
     let ty = mhi_render::diff::image_to_tensor(&y, &device);

@@ -10,7 +10,7 @@ use anyhow::{Context, bail};
 use burn::tensor::Device;
 use clap::Args;
 use mhi_data::{CameraFile, Fit, Frame, load_frame};
-use mhi_geom::{BlendHeuristic, Camera, depths_linear_in_disparity};
+use mhi_geom::{BlendHeuristic, Camera};
 use mhi_net::{MhiSource, Model, ViewSynthesis};
 use mhi_render::{Prune, SweepConfig, heuristic_weights_for};
 
@@ -47,20 +47,11 @@ pub struct RenderArgs {
     pub sweep: bool,
     /// Working size WIDTHxHEIGHT (photos are resized, intrinsics follow; multiples of 4 for a
     /// run). Default: the reference photo's aspect with its longer side 256 (multiples of 4).
-    #[arg(long, value_parser = crate::data::parse_size)]
+    #[arg(long, value_parser = crate::common::parse_size)]
     pub size: Option<(u32, u32)>,
-    /// Normals of the sweep MHI (1, 2, 3 or 5; with --sweep or without a model).
-    #[arg(long, default_value_t = 5, value_parser = crate::data::parse_normals)]
-    pub normals: usize,
-    /// Planes per normal of the sweep MHI.
-    #[arg(long, default_value_t = 32)]
-    pub planes: usize,
-    /// Nearest plane depth of the sweep MHI, in the cameras' units.
-    #[arg(long, default_value_t = 1.0)]
-    pub near: f64,
-    /// Farthest plane depth of the sweep MHI.
-    #[arg(long, default_value_t = 100.0)]
-    pub far: f64,
+    /// The sweep MHI's grid (with --sweep or without a model; a trained model keeps its own).
+    #[command(flatten)]
+    pub grid: crate::common::PlaneArgs,
     /// Frames of the orbit GIF around the reference view (0: none).
     #[arg(long, default_value_t = 30)]
     pub orbit_frames: usize,
@@ -193,9 +184,9 @@ fn run(a: &RenderArgs, export: Option<&std::path::Path>, views_too: bool) -> any
     }
     let layers = match &learned {
         Some(m) => m.normals().len() * m.depths().len() * 8,
-        None => a.normals * a.planes,
+        None => a.grid.normals * a.grid.planes,
     };
-    crate::data::check_memory("--size", size.0, size.1, layers)?;
+    crate::common::check_memory("--size", size.0, size.1, layers)?;
     let frame = |path: &PathBuf, row: usize| Frame {
         row: file.rows[row],
         path: path.clone(),
@@ -210,8 +201,8 @@ fn run(a: &RenderArgs, export: Option<&std::path::Path>, views_too: bool) -> any
     let synth = ViewSynthesis::new(match &learned {
         Some(m) => MhiSource::Learned(m),
         None => MhiSource::Sweep {
-            normals: mhi_geom::NormalSet::paper_subset(a.normals)?,
-            depths: depths_linear_in_disparity(a.near, a.far, a.planes)?,
+            normals: a.grid.normal_set()?,
+            depths: a.grid.depths()?,
             config: SweepConfig::for_short_side(size.0.min(size.1)),
         },
     });

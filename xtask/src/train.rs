@@ -4,33 +4,16 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
-use burn::tensor::Device;
 use clap::Args;
 use mhi_data::DataSource;
 use mhi_net::loss::TrainLoss;
 use mhi_net::{TrainConfig, Trainer};
 
+use crate::common::{Backend, device};
+
 /// The training defaults, from one place: `TrainConfig` (the CLI shows them).
 fn defaults() -> TrainConfig {
     TrainConfig::for_normals(5)
-}
-
-/// The tensor backend (`--backend`).
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Backend {
-    /// burn's CPU backend.
-    Flex,
-    /// burn's wgpu backend (a build with `--features wgpu`).
-    Wgpu,
-}
-
-impl std::fmt::Display for Backend {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Self::Flex => "flex",
-            Self::Wgpu => "wgpu",
-        })
-    }
 }
 
 /// The training loss (`--loss`).
@@ -77,7 +60,7 @@ pub struct TrainArgs {
     #[arg(long)]
     pub resume: bool,
     /// Number of normals: 1 (the MPI baseline), 2, 3 or 5.
-    #[arg(long, default_value_t = 5, value_parser = crate::data::parse_normals)]
+    #[arg(long, default_value_t = 5, value_parser = crate::common::parse_normals)]
     pub normals: usize,
     /// Planes per normal.
     #[arg(long, default_value_t = defaults().planes)]
@@ -89,7 +72,7 @@ pub struct TrainArgs {
     #[arg(long, value_enum, default_value_t = PriorArg::Sweep)]
     pub prior: PriorArg,
     /// Training resolution WIDTHxHEIGHT (divisible by 4).
-    #[arg(long, default_value = "64x64", value_parser = crate::data::parse_size)]
+    #[arg(long, default_value = "64x64", value_parser = crate::common::parse_size)]
     pub size: (u32, u32),
     /// Channels of the first level of the stage-1 3D U-Net.
     #[arg(long, default_value_t = defaults().stage1.unet.width)]
@@ -148,18 +131,6 @@ pub struct TrainArgs {
     pub eval_samples: usize,
 }
 
-pub fn device(backend: Backend) -> anyhow::Result<Device> {
-    match backend {
-        Backend::Flex => Ok(Device::flex()),
-        #[cfg(feature = "wgpu")]
-        Backend::Wgpu => Ok(Device::wgpu(burn::tensor::DeviceKind::DefaultDevice)),
-        #[cfg(not(feature = "wgpu"))]
-        Backend::Wgpu => bail!(
-            "this build has no wgpu backend; build it with `cargo run -p xtask --features wgpu -- ...` (about 14 minutes from clean)"
-        ),
-    }
-}
-
 /// The data sources of `--data`, `--data-weight` and `--holdout`.
 pub fn sources(a: &TrainArgs) -> anyhow::Result<Vec<DataSource>> {
     if !a.data_weights.is_empty() && a.data_weights.len() != a.data.len() {
@@ -206,11 +177,11 @@ pub fn sources(a: &TrainArgs) -> anyhow::Result<Vec<DataSource>> {
 /// `cargo xtask train`.
 pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
     if a.data.len() == 1 && a.data[0] == std::path::Path::new("data/synth") {
-        crate::experiments::ensure_synthetic(&a.data[0])?;
+        crate::common::ensure_synthetic(&a.data[0])?;
     }
     let sources = sources(a)?;
     let device = device(a.backend)?.autodiff();
-    let weights = crate::weights::cache_dir(a.cache.as_deref()).join("weights");
+    let weights = crate::common::cache_dir(a.cache.as_deref()).join("weights");
     let mut trainer = if a.resume {
         Trainer::resume(&a.run, &a.data[0], Some(&weights), device)
             .with_context(|| format!("resuming {}", a.run.display()))?

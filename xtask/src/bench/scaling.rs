@@ -15,7 +15,7 @@ use mhi_net::{BlendChoice, MhiSource, Model, TrainConfig, ViewSynthesis};
 use mhi_render::{Blend, Prune, RenderOptions, SweepConfig, render, sweep_mhi};
 use rand::{Rng, SeedableRng};
 
-use crate::bench::median_ms;
+use super::median_ms;
 
 /// `n` unit normals: the paper's sets for 1, 2, 3 and 5, else `n` normals tilted 40° from the
 /// optical axis, evenly around it.
@@ -36,7 +36,7 @@ fn normals(n: usize) -> anyhow::Result<NormalSet> {
 
 /// A reference and a target camera of the bench (4° apart) at `size`, and random images.
 fn pair(size: u32) -> anyhow::Result<(LoadedFrame, LoadedFrame, Camera)> {
-    let (mhi, target) = crate::bench::scene(1, 1, size, false)?;
+    let (mhi, target) = super::scene(1, 1, size, false)?;
     let reference = *mhi.reference();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
     let mut img = || {
@@ -96,7 +96,7 @@ fn time_one(
     pool.install(|| -> anyhow::Result<f64> {
         Ok(match what {
             What::Render => {
-                let (mhi, target) = crate::bench::scene_with(normals, d, size)?;
+                let (mhi, target) = super::scene_with(normals, d, size)?;
                 median_ms(runs, || {
                     std::hint::black_box(render(&mhi, &target, &soft).expect("bench scene"));
                 })

@@ -551,142 +551,186 @@ pub fn make_scene(config: &SynthConfig, index: usize) -> Result<Scene> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let courtyard = rng.random_bool(0.3);
     let floor_y: f64 = rng.random_range(1.3..1.8);
-    let mut surfaces = Vec::new();
     // World frame: x right, y down, z forward; the clip starts near the origin looking along +z.
-    if courtyard {
-        let half_w: f64 = rng.random_range(4.0..7.0);
-        let back: f64 = rng.random_range(11.0..18.0);
-        let h_l: f64 = rng.random_range(5.0..10.0);
-        let h_r: f64 = rng.random_range(5.0..10.0);
-        let h_b: f64 = rng.random_range(5.0..10.0);
-        let big = 60.0;
-        let tex = |rng: &mut ChaCha8Rng| rand_texture(rng);
-        surfaces.push(Surface::new(
-            "floor",
-            DVec3::new(-big, floor_y, -big),
-            DVec3::Z * 2.0 * big,
-            DVec3::X * 2.0 * big,
-            tex(&mut rng),
-        ));
-        let y = |h: f64| DVec3::new(0.0, -h, 0.0);
-        surfaces.push(Surface::new(
-            "wall",
-            DVec3::new(-half_w, floor_y, -4.0),
-            y(h_l),
-            DVec3::Z * (back + 4.0),
-            tex(&mut rng),
-        ));
-        surfaces.push(Surface::new(
-            "wall",
-            DVec3::new(half_w, floor_y, -4.0),
-            DVec3::Z * (back + 4.0),
-            y(h_r),
-            tex(&mut rng),
-        ));
-        surfaces.push(Surface::new(
-            "wall",
-            DVec3::new(-half_w, floor_y, back),
-            DVec3::X * 2.0 * half_w,
-            y(h_b),
-            tex(&mut rng),
-        ));
-        // Sky: five faces of a large box closed by the floor.
-        let sky = Texture::Gradient {
-            dir: [0.0, 1.0],
-            length: big,
-            a: [0.55, 0.7, 0.95],
-            b: [0.95, 0.97, 1.0],
-        };
-        let lo = DVec3::new(-big, floor_y, -big);
-        let h = y(big);
-        surfaces.push(Surface::new(
-            "sky",
-            lo + DVec3::Z * 2.0 * big,
-            DVec3::X * 2.0 * big,
-            h,
-            sky.clone(),
-        ));
-        surfaces.push(Surface::new(
-            "sky",
-            lo,
-            h,
-            DVec3::X * 2.0 * big,
-            sky.clone(),
-        ));
-        surfaces.push(Surface::new(
-            "sky",
-            lo,
-            DVec3::Z * 2.0 * big,
-            h,
-            sky.clone(),
-        ));
-        surfaces.push(Surface::new(
-            "sky",
-            lo + DVec3::X * 2.0 * big,
-            h,
-            DVec3::Z * 2.0 * big,
-            sky.clone(),
-        ));
-        surfaces.push(Surface::new(
-            "sky",
-            lo + h,
-            DVec3::X * 2.0 * big,
-            DVec3::Z * 2.0 * big,
-            sky,
-        ));
+    let mut surfaces = if courtyard {
+        courtyard_surfaces(&mut rng, floor_y)
     } else {
-        let half_w: f64 = rng.random_range(3.0..5.0);
-        let back: f64 = rng.random_range(7.0..11.0);
-        let front = -3.0;
-        let height: f64 = rng.random_range(2.6..3.6);
-        let ceil_y = floor_y - height;
-        let len = back - front;
-        let yv = DVec3::new(0.0, -height, 0.0);
-        surfaces.push(Surface::new(
-            "floor",
-            DVec3::new(-half_w, floor_y, front),
-            DVec3::Z * len,
-            DVec3::X * 2.0 * half_w,
-            rand_texture(&mut rng),
-        ));
-        surfaces.push(Surface::new(
-            "ceiling",
-            DVec3::new(-half_w, ceil_y, front),
-            DVec3::X * 2.0 * half_w,
-            DVec3::Z * len,
-            rand_texture(&mut rng),
-        ));
-        surfaces.push(Surface::new(
-            "wall",
-            DVec3::new(-half_w, floor_y, front),
-            yv,
-            DVec3::Z * len,
-            rand_texture(&mut rng),
-        ));
-        surfaces.push(Surface::new(
-            "wall",
-            DVec3::new(half_w, floor_y, front),
-            DVec3::Z * len,
-            yv,
-            rand_texture(&mut rng),
-        ));
-        surfaces.push(Surface::new(
-            "wall",
-            DVec3::new(-half_w, floor_y, back),
-            DVec3::X * 2.0 * half_w,
-            yv,
-            rand_texture(&mut rng),
-        ));
-        surfaces.push(Surface::new(
-            "wall",
-            DVec3::new(-half_w, floor_y, front),
-            yv,
-            DVec3::X * 2.0 * half_w,
-            rand_texture(&mut rng),
-        ));
-    }
+        room_surfaces(&mut rng, floor_y)
+    };
+    let clip = camera_clip(&mut rng, config)?;
+    add_props(&mut rng, &mut surfaces, &clip, floor_y, courtyard);
+    let light = DVec3::new(
+        rng.random_range(-0.6..0.6),
+        -1.0,
+        rng.random_range(-0.6..0.6),
+    )
+    .normalize();
+    let timestamps = (0..config.frames as u64)
+        .map(|f| 1_000_000 + f * 33_367)
+        .collect();
+    Ok(Scene {
+        name: format!("scene_{index:05}"),
+        kind: if courtyard { "courtyard" } else { "room" }.into(),
+        seed,
+        light,
+        surfaces,
+        cameras: clip.cameras,
+        timestamps,
+    })
+}
 
-    // Camera clip: start pose, then a straight translation and a steady yaw/pitch change.
+/// A courtyard: a floor, three walls and a sky box (the random draws of a scene, in order).
+fn courtyard_surfaces(rng: &mut ChaCha8Rng, floor_y: f64) -> Vec<Surface> {
+    let mut surfaces = Vec::new();
+    let half_w: f64 = rng.random_range(4.0..7.0);
+    let back: f64 = rng.random_range(11.0..18.0);
+    let h_l: f64 = rng.random_range(5.0..10.0);
+    let h_r: f64 = rng.random_range(5.0..10.0);
+    let h_b: f64 = rng.random_range(5.0..10.0);
+    let big = 60.0;
+    let tex = |rng: &mut ChaCha8Rng| rand_texture(rng);
+    surfaces.push(Surface::new(
+        "floor",
+        DVec3::new(-big, floor_y, -big),
+        DVec3::Z * 2.0 * big,
+        DVec3::X * 2.0 * big,
+        tex(rng),
+    ));
+    let y = |h: f64| DVec3::new(0.0, -h, 0.0);
+    surfaces.push(Surface::new(
+        "wall",
+        DVec3::new(-half_w, floor_y, -4.0),
+        y(h_l),
+        DVec3::Z * (back + 4.0),
+        tex(rng),
+    ));
+    surfaces.push(Surface::new(
+        "wall",
+        DVec3::new(half_w, floor_y, -4.0),
+        DVec3::Z * (back + 4.0),
+        y(h_r),
+        tex(rng),
+    ));
+    surfaces.push(Surface::new(
+        "wall",
+        DVec3::new(-half_w, floor_y, back),
+        DVec3::X * 2.0 * half_w,
+        y(h_b),
+        tex(rng),
+    ));
+    // Sky: five faces of a large box closed by the floor.
+    let sky = Texture::Gradient {
+        dir: [0.0, 1.0],
+        length: big,
+        a: [0.55, 0.7, 0.95],
+        b: [0.95, 0.97, 1.0],
+    };
+    let lo = DVec3::new(-big, floor_y, -big);
+    let h = y(big);
+    surfaces.push(Surface::new(
+        "sky",
+        lo + DVec3::Z * 2.0 * big,
+        DVec3::X * 2.0 * big,
+        h,
+        sky.clone(),
+    ));
+    surfaces.push(Surface::new(
+        "sky",
+        lo,
+        h,
+        DVec3::X * 2.0 * big,
+        sky.clone(),
+    ));
+    surfaces.push(Surface::new(
+        "sky",
+        lo,
+        DVec3::Z * 2.0 * big,
+        h,
+        sky.clone(),
+    ));
+    surfaces.push(Surface::new(
+        "sky",
+        lo + DVec3::X * 2.0 * big,
+        h,
+        DVec3::Z * 2.0 * big,
+        sky.clone(),
+    ));
+    surfaces.push(Surface::new(
+        "sky",
+        lo + h,
+        DVec3::X * 2.0 * big,
+        DVec3::Z * 2.0 * big,
+        sky,
+    ));
+    surfaces
+}
+
+/// A closed room: floor, ceiling and four walls.
+fn room_surfaces(rng: &mut ChaCha8Rng, floor_y: f64) -> Vec<Surface> {
+    let mut surfaces = Vec::new();
+    let half_w: f64 = rng.random_range(3.0..5.0);
+    let back: f64 = rng.random_range(7.0..11.0);
+    let front = -3.0;
+    let height: f64 = rng.random_range(2.6..3.6);
+    let ceil_y = floor_y - height;
+    let len = back - front;
+    let yv = DVec3::new(0.0, -height, 0.0);
+    surfaces.push(Surface::new(
+        "floor",
+        DVec3::new(-half_w, floor_y, front),
+        DVec3::Z * len,
+        DVec3::X * 2.0 * half_w,
+        rand_texture(rng),
+    ));
+    surfaces.push(Surface::new(
+        "ceiling",
+        DVec3::new(-half_w, ceil_y, front),
+        DVec3::X * 2.0 * half_w,
+        DVec3::Z * len,
+        rand_texture(rng),
+    ));
+    surfaces.push(Surface::new(
+        "wall",
+        DVec3::new(-half_w, floor_y, front),
+        yv,
+        DVec3::Z * len,
+        rand_texture(rng),
+    ));
+    surfaces.push(Surface::new(
+        "wall",
+        DVec3::new(half_w, floor_y, front),
+        DVec3::Z * len,
+        yv,
+        rand_texture(rng),
+    ));
+    surfaces.push(Surface::new(
+        "wall",
+        DVec3::new(-half_w, floor_y, back),
+        DVec3::X * 2.0 * half_w,
+        yv,
+        rand_texture(rng),
+    ));
+    surfaces.push(Surface::new(
+        "wall",
+        DVec3::new(-half_w, floor_y, front),
+        yv,
+        DVec3::X * 2.0 * half_w,
+        rand_texture(rng),
+    ));
+    surfaces
+}
+
+/// A camera clip and where the props may stand.
+struct Clip {
+    cameras: Vec<Camera>,
+    centers: Vec<DVec3>,
+    /// The clip's middle position and viewing direction.
+    mid: DVec3,
+    forward: DVec3,
+}
+
+/// The camera clip: a start pose, then a straight translation and a steady yaw/pitch change.
+fn camera_clip(rng: &mut ChaCha8Rng, config: &SynthConfig) -> Result<Clip> {
     let start = DVec3::new(
         rng.random_range(-0.8..0.8),
         rng.random_range(-0.2..0.2),
@@ -742,8 +786,23 @@ pub fn make_scene(config: &SynthConfig, index: usize) -> Result<Scene> {
             })?,
         );
     }
-    let forward = DMat3::from_rotation_y(yaw0 + dyaw * 0.5) * DVec3::Z;
-    let mid = start + travel_dir * travel * 0.5;
+    Ok(Clip {
+        cameras,
+        centers,
+        mid: start + travel_dir * travel * 0.5,
+        forward: DMat3::from_rotation_y(yaw0 + dyaw * 0.5) * DVec3::Z,
+    })
+}
+
+/// Props in view of the clip, clear of every camera: slanted panels, boxes and thin poles.
+fn add_props(
+    rng: &mut ChaCha8Rng,
+    surfaces: &mut Vec<Surface>,
+    clip: &Clip,
+    floor_y: f64,
+    courtyard: bool,
+) {
+    let (forward, mid, centers) = (clip.forward, clip.mid, &clip.centers);
     // Clearance from every camera position.
     let clear = |p: DVec3, r: f64| {
         centers
@@ -758,7 +817,7 @@ pub fn make_scene(config: &SynthConfig, index: usize) -> Result<Scene> {
 
     // Slanted panels at 20–70° to the view.
     for _ in 0..rng.random_range(2..=4) {
-        let c = in_view_point(&mut rng, 2.5, 6.0);
+        let c = in_view_point(rng, 2.5, 6.0);
         let c = DVec3::new(c.x, floor_y - rng.random_range(0.6..1.8), c.z);
         let (sw, sh): (f64, f64) = (rng.random_range(0.7..2.0), rng.random_range(0.7..2.0));
         if !clear(c, sw.max(sh) / 2.0) {
@@ -777,12 +836,12 @@ pub fn make_scene(config: &SynthConfig, index: usize) -> Result<Scene> {
             corner,
             u * sw,
             v * sh,
-            rand_texture(&mut rng),
+            rand_texture(rng),
         ));
     }
     // Boxes on the floor.
     for _ in 0..rng.random_range(1..=3) {
-        let c = in_view_point(&mut rng, 3.0, 7.5);
+        let c = in_view_point(rng, 3.0, 7.5);
         let size = DVec3::new(
             rng.random_range(0.5..1.5),
             rng.random_range(0.4..1.4),
@@ -791,9 +850,9 @@ pub fn make_scene(config: &SynthConfig, index: usize) -> Result<Scene> {
         if !clear(c, size.x.max(size.z)) {
             continue;
         }
-        let tex = rand_texture(&mut rng);
+        let tex = rand_texture(rng);
         push_box(
-            &mut surfaces,
+            surfaces,
             "box",
             DVec2::new(c.x, c.z),
             size,
@@ -804,19 +863,19 @@ pub fn make_scene(config: &SynthConfig, index: usize) -> Result<Scene> {
     }
     // Thin poles.
     for _ in 0..rng.random_range(1..=3) {
-        let c = in_view_point(&mut rng, 2.5, 8.0);
+        let c = in_view_point(rng, 2.5, 8.0);
         let t: f64 = rng.random_range(0.04..0.1);
         if !clear(c, t) {
             continue;
         }
-        let tex = rand_texture(&mut rng);
+        let tex = rand_texture(rng);
         let height = if courtyard {
             rng.random_range(2.0..4.0)
         } else {
             floor_y + 3.6
         };
         push_box(
-            &mut surfaces,
+            surfaces,
             "pole",
             DVec2::new(c.x, c.z),
             DVec3::new(t, height, t),
@@ -825,23 +884,6 @@ pub fn make_scene(config: &SynthConfig, index: usize) -> Result<Scene> {
             &tex,
         );
     }
-
-    let light = DVec3::new(
-        rng.random_range(-0.6..0.6),
-        -1.0,
-        rng.random_range(-0.6..0.6),
-    )
-    .normalize();
-    let timestamps = (0..n as u64).map(|f| 1_000_000 + f * 33_367).collect();
-    Ok(Scene {
-        name: format!("scene_{index:05}"),
-        kind: if courtyard { "courtyard" } else { "room" }.into(),
-        seed,
-        light,
-        surfaces,
-        cameras,
-        timestamps,
-    })
 }
 
 /// What [`generate`] wrote.

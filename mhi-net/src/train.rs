@@ -304,7 +304,7 @@ impl Trainer {
         config.validate()?;
         if RunDir::new(dir).config_path().exists() {
             return Err(Error::Config(format!(
-                "{} already holds a training run; pass --resume to continue it or choose another --run",
+                "{} already holds a training run: resume it or start in another directory",
                 dir.display()
             )));
         }
@@ -347,7 +347,7 @@ impl Trainer {
                 (l @ TrainLoss::Perceptual { .. }, _) => l,
                 (_, why) => {
                     return Err(Error::Config(format!(
-                        "{}: the run trains with the VGG16 perceptual loss, but its weights cannot be loaded ({}); run `cargo xtask weights`",
+                        "{}: the run trains with the VGG16 perceptual loss, but its weights cannot be loaded ({}); fetch the pretrained weights first",
                         cfg_path.display(),
                         why.unwrap_or_default()
                     )));
@@ -358,7 +358,7 @@ impl Trainer {
         };
         if !run.has_checkpoint() {
             return Err(Error::Config(format!(
-                "{}: the run has no checkpoint yet; start it again without --resume",
+                "{}: the run has no checkpoint yet to resume from; start it afresh",
                 dir.display()
             )));
         }

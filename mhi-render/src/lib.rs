@@ -33,6 +33,7 @@
 //! ```
 
 mod cpu;
+#[cfg(feature = "diff")]
 pub mod diff;
 mod error;
 mod mhi;

@@ -184,7 +184,12 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
     let weights = crate::common::cache_dir(a.cache.as_deref()).join("weights");
     let mut trainer = if a.resume {
         Trainer::resume(&a.run, &a.data[0], Some(&weights), device)
-            .with_context(|| format!("resuming {}", a.run.display()))?
+            .with_context(|| {
+                format!(
+                    "--resume --run {} (a run without a checkpoint starts without --resume; `cargo xtask weights` fetches the VGG16 weights)",
+                    a.run.display()
+                )
+            })?
     } else {
         let mut c = TrainConfig::for_normals(a.normals);
         c.stage1.unet.width = a.width;
@@ -220,8 +225,12 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
                 }
             },
         };
-        Trainer::new(c, &a.run, &a.data[0], loss, device)
-            .with_context(|| format!("starting {}", a.run.display()))?
+        Trainer::new(c, &a.run, &a.data[0], loss, device).with_context(|| {
+            format!(
+                "--run {} (pass --resume to continue a run there, or choose another --run)",
+                a.run.display()
+            )
+        })?
     };
     let cfg = trainer.config().clone();
     let lpips = mhi_net::backbone::Backbone::load(

@@ -12,13 +12,13 @@ use burn::tensor::{Device, Distribution, Tensor};
 use super::median_ms;
 
 /// One op at one shape: what it is and its parameters, shared with the PyTorch twin.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct OpSpec {
     /// Key shared with the PyTorch script.
     pub name: String,
     /// `conv3d`, `conv3d_as_2d` (the same sums through a 2D kernel; PyTorch runs conv3d),
     /// `convT3d`, `layernorm5`, `conv2d`, `grid_sample`.
-    pub kind: &'static str,
+    pub kind: String,
     /// Input shape.
     pub input: Vec<usize>,
     /// Output channels (convolutions).
@@ -29,187 +29,11 @@ pub struct OpSpec {
     pub dilation: usize,
 }
 
-/// The ops of one phase-1 step of the default model (N = 5, D = 8, 64 × 64, widths 8/16/32).
+/// The ops of one phase-1 step of the default model (N = 5, D = 8, 64 × 64, widths 8/16/32),
+/// from `xtask/scripts/ops.json` (the table the PyTorch twin is handed too).
 pub fn default_ops() -> Vec<OpSpec> {
-    let (n, d) = (5, 8);
-    let op = |name: &str, kind, input: Vec<usize>, cout, stride, dilation| OpSpec {
-        name: name.into(),
-        kind,
-        input,
-        cout,
-        stride,
-        dilation,
-    };
-    vec![
-        op(
-            "stem conv3d 6→8 @64",
-            "conv3d",
-            vec![n, 6, d, 64, 64],
-            8,
-            1,
-            1,
-        ),
-        op(
-            "down conv3d 8→16 s2 @64",
-            "conv3d",
-            vec![n, 8, d, 64, 64],
-            16,
-            2,
-            1,
-        ),
-        op(
-            "down conv3d 16→32 s2 @32",
-            "conv3d",
-            vec![n, 16, d, 32, 32],
-            32,
-            2,
-            1,
-        ),
-        op(
-            "mid conv3d 32→32 d1 @16",
-            "conv3d",
-            vec![n, 32, d, 16, 16],
-            32,
-            1,
-            1,
-        ),
-        op(
-            "mid conv3d 32→32 d4 @16",
-            "conv3d",
-            vec![n, 32, d, 16, 16],
-            32,
-            1,
-            4,
-        ),
-        op(
-            "dec conv3d 32→16 @32",
-            "conv3d",
-            vec![n, 32, d, 32, 32],
-            16,
-            1,
-            1,
-        ),
-        op(
-            "dec conv3d 16→8 @64",
-            "conv3d",
-            vec![n, 16, d, 64, 64],
-            8,
-            1,
-            1,
-        ),
-        op(
-            "  stem as 2D (3 planes)",
-            "conv3d_as_2d",
-            vec![n, 6, d, 64, 64],
-            8,
-            1,
-            1,
-        ),
-        op(
-            "  down 8→16 s2 as 2D",
-            "conv3d_as_2d",
-            vec![n, 8, d, 64, 64],
-            16,
-            2,
-            1,
-        ),
-        op(
-            "  mid 32→32 d4 as 2D",
-            "conv3d_as_2d",
-            vec![n, 32, d, 16, 16],
-            32,
-            1,
-            4,
-        ),
-        op(
-            "  dec 32→16 @32 as 2D",
-            "conv3d_as_2d",
-            vec![n, 32, d, 32, 32],
-            16,
-            1,
-            1,
-        ),
-        op(
-            "  dec 16→8 as 2D",
-            "conv3d_as_2d",
-            vec![n, 16, d, 64, 64],
-            8,
-            1,
-            1,
-        ),
-        op(
-            "up convT3d 32→16 @16",
-            "convT3d",
-            vec![n, 32, d, 16, 16],
-            16,
-            2,
-            1,
-        ),
-        op(
-            "up convT3d 16→8 @32",
-            "convT3d",
-            vec![n, 16, d, 32, 32],
-            8,
-            2,
-            1,
-        ),
-        op(
-            "layernorm C=8 @64 (permutes)",
-            "layernorm5",
-            vec![n, 8, d, 64, 64],
-            8,
-            1,
-            1,
-        ),
-        op(
-            "grid_sample 40 layers @64",
-            "grid_sample",
-            vec![n * d, 4, 64, 64],
-            4,
-            1,
-            1,
-        ),
-        op(
-            "vgg conv2d 3→64 @64",
-            "conv2d",
-            vec![6, 3, 64, 64],
-            64,
-            1,
-            1,
-        ),
-        op(
-            "vgg conv2d 64→64 @64",
-            "conv2d",
-            vec![6, 64, 64, 64],
-            64,
-            1,
-            1,
-        ),
-        op(
-            "vgg conv2d 128→128 @32",
-            "conv2d",
-            vec![6, 128, 32, 32],
-            128,
-            1,
-            1,
-        ),
-        op(
-            "vgg conv2d 256→256 @16",
-            "conv2d",
-            vec![6, 256, 16, 16],
-            256,
-            1,
-            1,
-        ),
-        op(
-            "vgg conv2d 512→512 @8",
-            "conv2d",
-            vec![6, 512, 8, 8],
-            512,
-            1,
-            1,
-        ),
-    ]
+    serde_json::from_str(include_str!("../../scripts/ops.json"))
+        .expect("xtask/scripts/ops.json is a list of op specs (checked by a test)")
 }
 
 fn rand<const D: usize>(shape: [usize; D], device: &Device) -> Tensor<D> {
@@ -229,7 +53,7 @@ fn op_fn(op: &OpSpec, device: &Device, grad: bool) -> Box<dyn Fn() -> Tensor<1>>
     let (s, dl) = (op.stride, op.dilation);
     let g = |t: Tensor<5>| if grad { t.require_grad() } else { t };
     let g4 = |t: Tensor<4>| if grad { t.require_grad() } else { t };
-    match op.kind {
+    match op.kind.as_str() {
         "conv3d" => {
             let x = g(rand(dims5(&op.input), device));
             let w = g(rand([op.cout, op.input[1], 3, 3, 3], device));
@@ -356,4 +180,34 @@ pub fn ops(
         sum_b / sum_t
     );
     Ok(serde_json::json!({ "threads": threads, "runs": runs, "ops": rows, "torch": torch }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The op table parses, holds every kind the timer knows and nothing else (an unknown kind
+    /// would be timed as a grid sample).
+    #[test]
+    fn the_op_table_parses_with_known_kinds() {
+        let ops = default_ops();
+        assert_eq!(ops.len(), 21);
+        let known = [
+            "conv3d",
+            "conv3d_as_2d",
+            "convT3d",
+            "layernorm5",
+            "conv2d",
+            "grid_sample",
+        ];
+        for o in &ops {
+            assert!(known.contains(&o.kind.as_str()), "{o:?}");
+            let rank = if o.kind == "conv2d" || o.kind == "grid_sample" {
+                4
+            } else {
+                5
+            };
+            assert_eq!(o.input.len(), rank, "{o:?}");
+        }
+    }
 }

@@ -62,6 +62,21 @@ impl RotationBin {
         }
     }
 
+    /// The bin's key in reports and JSON (its serde name), e.g. `"2-4"`.
+    pub const fn key(self) -> &'static str {
+        match self {
+            Self::UpTo2 => "0-2",
+            Self::From2To4 => "2-4",
+            Self::From4To8 => "4-8",
+            Self::Over8 => ">8",
+        }
+    }
+
+    /// The bin of a report key ([`Self::key`]).
+    pub fn from_key(key: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|b| b.key() == key)
+    }
+
     /// Short label for tables, e.g. `"2-4°"`.
     pub fn label(self) -> &'static str {
         match self {
@@ -366,6 +381,11 @@ mod tests {
         assert_eq!(RotationBin::of(2.0001), RotationBin::From2To4);
         assert_eq!(RotationBin::of(8.0), RotationBin::From4To8);
         assert_eq!(RotationBin::of(30.0), RotationBin::Over8);
+        // One vocabulary: the report key is the serde name, and it maps back.
+        for b in RotationBin::ALL {
+            assert_eq!(serde_json::to_value(b).unwrap(), b.key());
+            assert_eq!(RotationBin::from_key(b.key()), Some(b));
+        }
     }
 
     #[test]

@@ -5,12 +5,27 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
+use mhi_data::RotationBin;
 use serde::{Deserialize, Serialize};
 
 use crate::stats::Bootstrap;
 
-/// Rotation-bin labels in table order; `"all"` pools every bin.
-pub const BINS: [&str; 5] = ["0-2", "2-4", "4-8", ">8", "all"];
+/// Rotation-bin keys in table order ([`RotationBin::key`]); `"all"` pools every bin.
+pub const BINS: [&str; 5] = [
+    RotationBin::UpTo2.key(),
+    RotationBin::From2To4.key(),
+    RotationBin::From4To8.key(),
+    RotationBin::Over8.key(),
+    "all",
+];
+
+/// The table label of a bin key: the bin's own label (`≤2°`, …), or the key itself (`all`).
+pub fn bin_label(key: &str) -> &str {
+    match RotationBin::from_key(key) {
+        Some(b) => b.label(),
+        None => key,
+    }
+}
 /// Triplet kinds in table order; `"all"` pools both.
 pub const KINDS: [&str; 3] = ["interpolation", "extrapolation", "all"];
 
@@ -497,8 +512,7 @@ fn metric_table(s: &mut String, rows: &[Row], metric: Metric, title: &str) {
             .iter()
             .find(|r| r.bin == *b && r.kind == "all")
             .map_or(0, |r| r.count);
-        let unit = if *b == "all" { "" } else { "°" };
-        let _ = write!(s, " {b}{unit} (n={n}) |");
+        let _ = write!(s, " {} (n={n}) |", bin_label(b));
     }
     let _ = writeln!(s, " ms/view |");
     let _ = writeln!(s, "|---|{}---:|", "---:|".repeat(bins_present.len()));
@@ -541,8 +555,7 @@ pub fn markdown_tables(rows: &[Row], comparisons: &[Comparison]) -> String {
     let mut vals = String::from("|");
     for b in BINS {
         if let Some(r) = rows.iter().find(|r| r.bin == b && r.kind == "all") {
-            let unit = if b == "all" { "" } else { "°" };
-            let _ = write!(head, " {b}{unit} |");
+            let _ = write!(head, " {} |", bin_label(b));
             sep.push_str("---:|");
             let _ = write!(
                 vals,

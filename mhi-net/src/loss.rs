@@ -93,6 +93,17 @@ pub const VGG_FEATURE_SCALE: f32 = 0.226;
 /// the network cannot yet place layers well enough for sharpness to pay.
 pub const DEFAULT_PERCEPTUAL_WEIGHT: f32 = 0.01;
 
+/// Which loss a run trains with, as recorded in its `config.json` (`loss_kind`; the
+/// human-readable formula is `loss`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum LossKind {
+    /// L1 + SSIM.
+    #[default]
+    Photometric,
+    /// L1 + a factor times the VGG16 perceptual term (needs the VGG16 weights to resume).
+    Perceptual,
+}
+
 /// The loss a training run minimises.
 pub enum TrainLoss {
     /// L1 + SSIM (no pretrained weights needed).
@@ -126,6 +137,14 @@ impl TrainLoss {
                 None,
             ),
             Err(e) => (Self::Photometric, Some(e.to_string())),
+        }
+    }
+
+    /// Which kind it is.
+    pub fn kind(&self) -> LossKind {
+        match self {
+            Self::Photometric => LossKind::Photometric,
+            Self::Perceptual { .. } => LossKind::Perceptual,
         }
     }
 

@@ -240,12 +240,6 @@ impl Stage1Config {
 }
 
 impl Stage1 {
-    /// The same networks run on `scale × scale` pixel blocks (see [`Stage1Config::scale`]).
-    pub fn with_scale(mut self, scale: usize) -> Self {
-        self.scale = scale.max(1);
-        self
-    }
-
     /// Set the bias of every alpha head to `bias`: a large bias starts every alpha saturated
     /// near 1 (a stress test of training; the sigmoid's gradient is then tiny but finite).
     pub fn with_head_bias(mut self, bias: f32) -> Self {

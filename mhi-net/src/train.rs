@@ -18,7 +18,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::Error;
-use crate::loss::TrainLoss;
+use crate::loss::{LossKind, TrainLoss};
 use crate::nets::{BlendNet, BlendNetConfig, Stage1, Stage1Config, UNet3dConfig};
 use crate::run::{Latest, RunDir};
 use crate::volume::{Prior, Stage1Input, stage1_input};
@@ -73,9 +73,12 @@ pub struct TrainConfig {
     /// `loss::DEFAULT_PERCEPTUAL_WEIGHT`).
     #[config(default = "crate::loss::DEFAULT_PERCEPTUAL_WEIGHT")]
     pub perceptual_weight: f32,
-    /// The loss actually used (filled in by the trainer).
+    /// The loss actually used, as a formula (filled in by the trainer).
     #[config(default = "String::new()")]
     pub loss: String,
+    /// Which loss that is (filled in by the trainer): what resuming the run needs.
+    #[config(default = "LossKind::Photometric")]
+    pub loss_kind: LossKind,
     /// The training data: roots, splits, weights of the mix and the sequences held out for
     /// validation. Empty in runs written before it was recorded (they trained on one root).
     #[config(default = "Vec::new()")]
@@ -115,6 +118,20 @@ impl TrainConfig {
                 .or_insert(serde_json::json!(crate::loss::VGG_FEATURE_SCALE));
             o.entry("prior").or_insert(serde_json::json!("None"));
             o.entry("covered_loss").or_insert(serde_json::json!(false));
+            // Runs written before `loss_kind` existed: the formula of the perceptual loss ended
+            // with the legacy marker "(VGG16)".
+            if !o.contains_key("loss_kind") {
+                let perceptual = o
+                    .get("loss")
+                    .and_then(|l| l.as_str())
+                    .is_some_and(|l| l.ends_with(crate::loss::PERCEPTUAL_SUFFIX));
+                let kind = if perceptual {
+                    LossKind::Perceptual
+                } else {
+                    LossKind::Photometric
+                };
+                o.insert("loss_kind".into(), serde_json::json!(kind));
+            }
             if let Some(s1) = o.get_mut("stage1").and_then(|v| v.as_object_mut()) {
                 s1.entry("scale").or_insert(serde_json::json!(1));
             }
@@ -312,6 +329,7 @@ impl Trainer {
             config.perceptual_weight = *weight;
         }
         config.loss = loss.name();
+        config.loss_kind = loss.kind();
         // The data is opened (and the data sources filled in) before anything is written, so a
         // start that fails leaves no half-made run behind.
         let (stage1, blend) = init_models(&config, &device);
@@ -342,7 +360,7 @@ impl Trainer {
         let cfg_path = run.config_path();
         let config = run.config()?;
         config.validate()?;
-        let loss = if config.loss.ends_with(crate::loss::PERCEPTUAL_SUFFIX) {
+        let loss = if config.loss_kind == LossKind::Perceptual {
             match TrainLoss::from_weights(weights, config.perceptual_weight, &device) {
                 (l @ TrainLoss::Perceptual { .. }, _) => l,
                 (_, why) => {
@@ -1064,4 +1082,31 @@ fn psnr_of(output: Tensor<4>, target: Tensor<4>, per_normal: bool, n: usize) -> 
         .sum::<f32>()
         / b as f32;
     Ok(p)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A run's loss kind is recorded as an enum; runs written before it existed get theirs from
+    /// the legacy formula, once, when their config.json is read.
+    #[test]
+    fn the_loss_kind_is_recorded_and_migrated_from_old_configs() {
+        let mut c = TrainConfig::for_normals(2);
+        c.loss_kind = LossKind::Perceptual;
+        let text = serde_json::to_string(&c).unwrap();
+        let back = TrainConfig::from_json(&text, Path::new("config.json")).unwrap();
+        assert_eq!(back.loss_kind, LossKind::Perceptual);
+        for (name, kind) in [
+            ("L1 + 0.01*(conv1_2/2.6) (VGG16)", LossKind::Perceptual),
+            (crate::loss::PHOTOMETRIC_NAME, LossKind::Photometric),
+        ] {
+            let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+            let o = v.as_object_mut().unwrap();
+            o.remove("loss_kind");
+            o.insert("loss".into(), serde_json::json!(name));
+            let old = TrainConfig::from_json(&v.to_string(), Path::new("config.json")).unwrap();
+            assert_eq!(old.loss_kind, kind, "{name}");
+        }
+    }
 }

@@ -10,10 +10,8 @@ use glam::DVec3;
 use image::Rgb32FImage;
 use mhi_data::{Dataset, Fit, RotationBin, TripletIndex, load_frame, load_scene};
 use mhi_geom::{BlendHeuristic, Camera, NormalSet, depths_linear_in_disparity};
-use mhi_render::{
-    Blend, LayerColor, Mhi, Prune, RenderOptions, SweepConfig, oracle_alpha, oracle_weights,
-    render, sweep_mhi,
-};
+use mhi_net::{BlendChoice, MhiSource, ViewSynthesis};
+use mhi_render::{Blend, Prune, RenderOptions, SweepConfig, oracle_weights, render};
 use serde::Serialize;
 
 use crate::common::{ensure_synthetic, error_map, save_png, truth_of};
@@ -181,26 +179,20 @@ pub fn oracle(a: &OracleArgs) -> anyhow::Result<()> {
             .collect();
         let covered = covered_mask(&scene, &rf.camera, &tf.camera);
         for (ci, c) in configs.iter().enumerate() {
-            let mhi = if c.sweep {
-                sweep_mhi(
-                    &c.normals,
-                    &c.depths,
-                    &rf.camera,
-                    &rf.image,
-                    &sf.camera,
-                    &sf.image,
-                    &SweepConfig::default(),
-                )?
+            let source = if c.sweep {
+                MhiSource::Sweep {
+                    normals: c.normals.clone(),
+                    depths: c.depths.clone(),
+                    config: SweepConfig::default(),
+                }
             } else {
-                let alpha = oracle_alpha(&c.normals, &c.depths, &rf.camera, &ref_truth);
-                Mhi::new(
-                    c.normals.clone(),
-                    c.depths.clone(),
-                    rf.camera,
-                    LayerColor::Shared(rf.image.clone()),
-                    alpha,
-                )?
+                MhiSource::Oracle {
+                    normals: c.normals.clone(),
+                    depths: c.depths.clone(),
+                    truth: &ref_truth,
+                }
             };
+            let (mhi, _) = ViewSynthesis::new(source).mhi(&rf, &sf)?;
             let w;
             let blend = match c.blend {
                 OracleBlend::Oracle => {
@@ -439,22 +431,20 @@ pub fn sweep(a: &SweepArgs) -> anyhow::Result<()> {
         window_radius: a.window,
         ..SweepConfig::default()
     };
-    let t0 = Instant::now();
-    let mhi = sweep_mhi(
-        &normals, &depths, &rf.camera, &rf.image, &sf.camera, &sf.image, &cfg,
-    )?;
-    let build_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let t1 = Instant::now();
-    let out = render(
+    let synth = ViewSynthesis::new(MhiSource::Sweep {
+        normals: normals.clone(),
+        depths,
+        config: cfg,
+    });
+    let (mhi, times) = synth.mhi(&rf, &sf)?;
+    let build_ms = times.volume_ms;
+    let out = synth.render(
         &mhi,
         &tf.camera,
-        &RenderOptions {
-            blend: Blend::Heuristic(BlendHeuristic::Soft),
-            keep_multi_normal: true,
-            ..Default::default()
-        },
+        BlendChoice::Heuristic(BlendHeuristic::Soft),
+        Prune::NONE,
     )?;
-    let render_ms = t1.elapsed().as_secs_f64() * 1e3;
+    let render_ms = out.render_ms;
     // The floor: the input view nearest the target (by camera centre), shown as it is.
     let dist = |c: &Camera| (c.center_in_world() - tf.camera.center_in_world()).length();
     let nearest = if dist(&rf.camera) <= dist(&sf.camera) {

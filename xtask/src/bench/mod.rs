@@ -174,16 +174,12 @@ fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<
     let size = crate::common::size_for(mhi_data::check_same_size(&[&seq.frames[0]])?, a.size);
     let load = |i: usize| mhi_data::load_frame(&seq.frames[i], Some(size), mhi_data::Fit::Stretch);
     let (rf, sf, tf) = (load(t.reference)?, load(t.source)?, load(t.target)?);
-    let normals = a.grid.normal_set()?;
-    let mhi = mhi_render::sweep_mhi(
-        &normals,
-        &a.grid.depths()?,
-        &rf.camera,
-        &rf.image,
-        &sf.camera,
-        &sf.image,
-        &mhi_render::SweepConfig::for_short_side(size.0.min(size.1)),
-    )?;
+    let synth = mhi_net::ViewSynthesis::new(mhi_net::MhiSource::Sweep {
+        normals: a.grid.normal_set()?,
+        depths: a.grid.depths()?,
+        config: mhi_render::SweepConfig::for_short_side(size.0.min(size.1)),
+    });
+    let (mhi, _) = synth.mhi(&rf, &sf)?;
     let (soft, pruned_opts) = soft_exact_and_pruned();
     let stats = render(&mhi, &tf.camera, &pruned_opts)?.stats;
     let (exact_ms, pruned_ms) = pool.install(|| {

@@ -12,7 +12,7 @@ use mhi_data::LoadedFrame;
 use mhi_eval::plot::{Axes, Curve};
 use mhi_geom::{BlendHeuristic, Camera, NormalSet, depths_linear_in_disparity};
 use mhi_net::{BlendChoice, MhiSource, Model, TrainConfig, ViewSynthesis};
-use mhi_render::{Blend, Prune, RenderOptions, SweepConfig, render, sweep_mhi};
+use mhi_render::{Blend, Prune, RenderOptions, SweepConfig, render};
 use rand::{Rng, SeedableRng};
 
 use super::median_ms;
@@ -101,19 +101,17 @@ fn time_one(
                     std::hint::black_box(render(&mhi, &target, &soft).expect("bench scene"));
                 })
             }
-            What::Sweep => median_ms(runs, || {
-                let mhi = sweep_mhi(
-                    &normals,
-                    &depths,
-                    &rf.camera,
-                    &rf.image,
-                    &sf.camera,
-                    &sf.image,
-                    &SweepConfig::default(),
-                )
-                .expect("bench pair");
-                std::hint::black_box(render(&mhi, &target, &soft).expect("bench scene"));
-            }),
+            What::Sweep => {
+                let synth = ViewSynthesis::new(MhiSource::Sweep {
+                    normals,
+                    depths,
+                    config: SweepConfig::default(),
+                });
+                median_ms(runs, || {
+                    let (mhi, _) = synth.mhi(&rf, &sf).expect("bench pair");
+                    std::hint::black_box(render(&mhi, &target, &soft).expect("bench scene"));
+                })
+            }
             What::Learned => {
                 let mut config = TrainConfig::for_normals(n);
                 config.planes = d;

@@ -464,10 +464,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             TripletKind::Interpolation => "interpolation",
             TripletKind::Extrapolation => "extrapolation",
         };
-        let bin = serde_json::to_value(t.bin)?
-            .as_str()
-            .unwrap_or("all")
-            .to_string();
+        let bin = t.bin.key().to_string();
         for o in &outputs {
             let img = clipped(&o.image);
             let pasted = with_uncovered_from(&img, gt, &covered);
@@ -767,11 +764,12 @@ fn markdown(
     let _ = writeln!(s, "# MHI evaluation report\n");
     let _ = writeln!(
         s,
-        "Dataset `{}` (split `{}`, {} sequences), {} triplets (rotation bins ≤2° / 2-4° / 4-8° / >8°: {} / {} / {} / {}), evaluated at {}. {}. Sweep: window radius {}, temperature {}. Intervals: 95 % percentile bootstrap over triplets ({} resamples, seed {}). Machine: {}, {} threads, {}.\n",
+        "Dataset `{}` (split `{}`, {} sequences), {} triplets (rotation bins {}: {} / {} / {} / {}), evaluated at {}. {}. Sweep: window radius {}, temperature {}. Intervals: 95 % percentile bootstrap over triplets ({} resamples, seed {}). Machine: {}, {} threads, {}.\n",
         meta.dataset,
         meta.split,
         meta.sequences.len(),
         meta.triplets,
+        mhi_data::RotationBin::ALL.map(|b| b.label()).join(" / "),
         meta.bin_counts[0],
         meta.bin_counts[1],
         meta.bin_counts[2],

@@ -43,6 +43,7 @@
 //! ```
 
 pub mod backbone;
+mod config;
 pub mod loss;
 mod model;
 mod nets;
@@ -52,6 +53,7 @@ mod train;
 mod view;
 mod volume;
 
+pub use config::{GRAD_CLIP_NORM, TrainConfig};
 pub use model::Model;
 pub use nets::{
     BlendNet, BlendNetConfig, SOFT_FLOOR, Stage1, Stage1Config, UNet3d, UNet3dConfig,
@@ -59,8 +61,7 @@ pub use nets::{
 };
 pub use run::{Latest, RunDir, ValRow};
 pub use train::{
-    CSV_HEADER, EvalScores, GRAD_CLIP_NORM, Sample, StepReport, StepTimes, TrainConfig, Trainer,
-    VAL_CSV_HEADER, init_models,
+    CSV_HEADER, EvalScores, Sample, StepReport, StepTimes, Trainer, VAL_CSV_HEADER, init_models,
 };
 pub use view::{
     BlendChoice, Blended, MhiSource, MhiTimes, MultiNormal, View, ViewSynthesis, multi_normal,

@@ -11,9 +11,10 @@ use mhi_render::diff::image_to_tensor;
 use mhi_render::{LayerColor, Mhi};
 
 use crate::Error;
+use crate::config::TrainConfig;
 use crate::nets::{BlendNet, Stage1};
 use crate::run::RunDir;
-use crate::train::{TrainConfig, alphas_of, load_networks};
+use crate::train::{alphas_of, load_networks};
 use crate::volume::{Stage1Input, stage1_input};
 
 /// A trained model (the networks of a run's latest checkpoint) on a non-autodiff device.

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::Error;
-use crate::train::TrainConfig;
+use crate::config::TrainConfig;
 
 /// Which checkpoint of a run is current (`latest.json`).
 #[derive(Debug, Clone, Serialize, Deserialize)]

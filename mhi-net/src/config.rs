@@ -1,0 +1,254 @@
+//! A training run's configuration: everything that defines it, saved as `config.json` in the
+//! run directory, with the migration of configs written by earlier versions.
+
+use std::path::Path;
+
+use burn::config::Config;
+use burn::grad_clipping::GradientClippingConfig;
+use burn::optim::AdamConfig;
+use mhi_data::DataSource;
+use mhi_geom::NormalSet;
+use mhi_render::SweepConfig;
+
+use crate::Error;
+use crate::loss::LossKind;
+use crate::nets::{BlendNetConfig, Stage1Config, UNet3dConfig};
+use crate::volume::Prior;
+
+/// Norm to which gradients are clipped by default.
+pub const GRAD_CLIP_NORM: f32 = 1.0;
+
+/// Everything that defines a training run; saved as `config.json` in the run directory.
+#[derive(Config, Debug)]
+pub struct TrainConfig {
+    /// Stage-1 networks.
+    pub stage1: Stage1Config,
+    /// Blending network.
+    pub blend: BlendNetConfig,
+    /// Optimizer (Adam; the paper's learning rate is `lr`).
+    pub optimizer: AdamConfig,
+    /// Learning rate.
+    #[config(default = 2e-4)]
+    pub lr: f64,
+    /// Seed of the initial weights and of every step's triplet.
+    #[config(default = 0)]
+    pub seed: u64,
+    /// Training image width.
+    #[config(default = 64)]
+    pub width: u32,
+    /// Training image height.
+    #[config(default = 64)]
+    pub height: u32,
+    /// Planes per normal D.
+    #[config(default = 8)]
+    pub planes: usize,
+    /// Nearest plane depth.
+    #[config(default = 1.0)]
+    pub near: f64,
+    /// Farthest plane depth.
+    #[config(default = 100.0)]
+    pub far: f64,
+    /// Steps of phase 1 (stage 1 on every multi-normal image).
+    #[config(default = 280)]
+    pub phase1_steps: usize,
+    /// Steps of phase 2 (blending network, stage 1 frozen).
+    #[config(default = 140)]
+    pub phase2_steps: usize,
+    /// Write a checkpoint every this many steps (and at the end).
+    #[config(default = 50)]
+    pub checkpoint_every: usize,
+    /// Held-out samples scored at every checkpoint (`val.csv`; 0 turns it off).
+    #[config(default = 4)]
+    pub val_samples: usize,
+    /// Factor of the VGG feature term of the perceptual loss (see
+    /// `loss::DEFAULT_PERCEPTUAL_WEIGHT`).
+    #[config(default = "crate::loss::DEFAULT_PERCEPTUAL_WEIGHT")]
+    pub perceptual_weight: f32,
+    /// The loss actually used, as a formula (filled in by the trainer).
+    #[config(default = "String::new()")]
+    pub loss: String,
+    /// Which loss that is (filled in by the trainer): what resuming the run needs.
+    #[config(default = "LossKind::Photometric")]
+    pub loss_kind: LossKind,
+    /// The training data: roots, splits, weights of the mix and the sequences held out for
+    /// validation. Empty in runs written before it was recorded (they trained on one root).
+    #[config(default = "Vec::new()")]
+    pub data: Vec<DataSource>,
+    /// What stage 1 starts from: nothing (the paper's network) or the training-free sweep,
+    /// whose alpha logits it corrects (see [`TrainConfig::with_sweep_prior`]).
+    #[config(default = "Prior::None")]
+    pub prior: Prior,
+    /// Score only the target pixels the reference covers (others are replaced by the target
+    /// before the loss, so they add no error and no gradient).
+    #[config(default = false)]
+    pub covered_loss: bool,
+}
+
+impl TrainConfig {
+    /// The default run for N normals: a CPU-sized model.
+    pub fn for_normals(normals: usize) -> Self {
+        TrainConfig::new(
+            Stage1Config::new(UNet3dConfig::new(), normals),
+            BlendNetConfig::new(normals),
+            // Guard: gradients are clipped to norm 1, so a stiff step (high learning rate,
+            // saturated alphas, a degenerate target) cannot throw the weights to infinity.
+            AdamConfig::new()
+                .with_grad_clipping(Some(GradientClippingConfig::Norm(GRAD_CLIP_NORM))),
+        )
+    }
+
+    /// Parse a run's `config.json`; runs written before `val_samples` existed get 0 (they
+    /// logged no validation), and runs written before `perceptual_weight` existed get the factor
+    /// they trained with, `loss::VGG_FEATURE_SCALE`.
+    pub fn from_json(text: &str, path: &Path) -> crate::Result<Self> {
+        let bad = |e: serde_json::Error| Error::Config(format!("{}: {e}", path.display()));
+        let mut v: serde_json::Value = serde_json::from_str(text).map_err(bad)?;
+        if let Some(o) = v.as_object_mut() {
+            o.entry("val_samples").or_insert(serde_json::json!(0));
+            o.entry("perceptual_weight")
+                .or_insert(serde_json::json!(crate::loss::VGG_FEATURE_SCALE));
+            o.entry("prior").or_insert(serde_json::json!("None"));
+            o.entry("covered_loss").or_insert(serde_json::json!(false));
+            // Runs written before `loss_kind` existed: the formula of the perceptual loss ended
+            // with the legacy marker "(VGG16)".
+            if !o.contains_key("loss_kind") {
+                let perceptual = o
+                    .get("loss")
+                    .and_then(|l| l.as_str())
+                    .is_some_and(|l| l.ends_with(crate::loss::PERCEPTUAL_SUFFIX));
+                let kind = if perceptual {
+                    LossKind::Perceptual
+                } else {
+                    LossKind::Photometric
+                };
+                o.insert("loss_kind".into(), serde_json::json!(kind));
+            }
+            if let Some(s1) = o.get_mut("stage1").and_then(|v| v.as_object_mut()) {
+                s1.entry("scale").or_insert(serde_json::json!(1));
+            }
+            for part in [&["stage1", "unet"][..], &["blend"][..]] {
+                let mut at = Some(&mut *o);
+                for key in part {
+                    at = at
+                        .and_then(|m| m.get_mut(*key))
+                        .and_then(|v| v.as_object_mut());
+                }
+                if let Some(m) = at {
+                    m.entry("residual").or_insert(serde_json::json!(false));
+                }
+            }
+        }
+        serde_json::from_value(v).map_err(bad)
+    }
+
+    /// The same run on the sweep prior: stage 1 takes the sweep's logits as a seventh channel
+    /// and predicts a zero-initialised residual on them, the blending network a zero-initialised
+    /// residual on the log Soft weights, and the loss scores covered pixels only. Untrained, it
+    /// renders the sweep blended with Soft.
+    pub fn with_sweep_prior(mut self) -> Self {
+        self.prior = Prior::Sweep;
+        self.stage1.unet.in_channels = Prior::Sweep.channels();
+        self.stage1.unet.residual = true;
+        self.blend.residual = true;
+        self.covered_loss = true;
+        self
+    }
+
+    /// The sweep's constants for the prior on images of `width × height` (the window scaled
+    /// with the short side), or `None` without the prior.
+    pub fn prior_sweep(&self, width: u32, height: u32) -> Option<SweepConfig> {
+        (self.prior == Prior::Sweep).then(|| SweepConfig::for_short_side(width.min(height)))
+    }
+
+    /// Every image side must be a multiple of this: `2^levels` of each U-Net, times stage 1's
+    /// scale.
+    pub fn size_multiple(&self) -> usize {
+        (self.stage1.scale.max(1) << self.stage1.unet.levels).max(1 << self.blend.levels)
+    }
+
+    /// Total number of steps of both phases.
+    pub fn total_steps(&self) -> usize {
+        self.phase1_steps + self.phase2_steps
+    }
+
+    /// The normal set (the paper's subsets).
+    pub fn normal_set(&self) -> crate::Result<NormalSet> {
+        let n = self.stage1.normals;
+        Ok(NormalSet::paper_subset(n)?)
+    }
+
+    pub(crate) fn validate(&self) -> crate::Result<()> {
+        self.normal_set()?;
+        let m = self.size_multiple();
+        if !(self.width as usize).is_multiple_of(m) || !(self.height as usize).is_multiple_of(m) {
+            return Err(Error::Config(format!(
+                "training size {}x{} must be divisible by {m} (the U-Nets halve the image {} times{})",
+                self.width,
+                self.height,
+                self.stage1.unet.levels.max(self.blend.levels),
+                if self.stage1.scale > 1 {
+                    format!(", after stage 1 averages {0}x{0} blocks", self.stage1.scale)
+                } else {
+                    String::new()
+                }
+            )));
+        }
+        if self.planes == 0 || self.stage1.normals == 0 || self.blend.normals != self.stage1.normals
+        {
+            return Err(Error::Config(
+                "planes and normals must be positive and agree between the stages".into(),
+            ));
+        }
+        let (channels, residual) = (self.prior.channels(), self.prior == Prior::Sweep);
+        if self.stage1.unet.in_channels != channels || self.stage1.unet.residual != residual {
+            return Err(Error::Config(format!(
+                "prior {:?} needs a stage-1 network with {channels} input channels and {} head; the config has {} channels and {} head",
+                self.prior,
+                if residual { "a residual" } else { "an alpha" },
+                self.stage1.unet.in_channels,
+                if self.stage1.unet.residual {
+                    "a residual"
+                } else {
+                    "an alpha"
+                },
+            )));
+        }
+        if !(self.lr > 0.0 && self.lr.is_finite()) {
+            return Err(Error::Config(format!(
+                "learning rate {} must be positive",
+                self.lr
+            )));
+        }
+        if self.checkpoint_every == 0 {
+            return Err(Error::Config("checkpoint_every must be at least 1".into()));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A run's loss kind is recorded as an enum; runs written before it existed get theirs from
+    /// the legacy formula, once, when their config.json is read.
+    #[test]
+    fn the_loss_kind_is_recorded_and_migrated_from_old_configs() {
+        let mut c = TrainConfig::for_normals(2);
+        c.loss_kind = LossKind::Perceptual;
+        let text = serde_json::to_string(&c).unwrap();
+        let back = TrainConfig::from_json(&text, Path::new("config.json")).unwrap();
+        assert_eq!(back.loss_kind, LossKind::Perceptual);
+        for (name, kind) in [
+            ("L1 + 0.01*(conv1_2/2.6) (VGG16)", LossKind::Perceptual),
+            (crate::loss::PHOTOMETRIC_NAME, LossKind::Photometric),
+        ] {
+            let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+            let o = v.as_object_mut().unwrap();
+            o.remove("loss_kind");
+            o.insert("loss".into(), serde_json::json!(name));
+            let old = TrainConfig::from_json(&v.to_string(), Path::new("config.json")).unwrap();
+            assert_eq!(old.loss_kind, kind, "{name}");
+        }
+    }
+}

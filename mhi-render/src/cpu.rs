@@ -7,6 +7,7 @@ use mhi_geom::{BlendHeuristic, Camera, plane_homography};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::bilinear;
 use crate::error::{Error, Result};
 use crate::mhi::{LayerColor, Mhi};
 
@@ -630,27 +631,15 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
                             }
                             let (a, col) = if idx[x] != u32::MAX {
                                 let i = idx[x] as usize;
-                                let (ax, ay) = (fxs[x], fys[x]);
-                                let (w00, w10, w01, w11) = (
-                                    (1.0 - ax) * (1.0 - ay),
-                                    ax * (1.0 - ay),
-                                    (1.0 - ax) * ay,
-                                    ax * ay,
-                                );
+                                let w = bilinear::weights(fxs[x], fys[x]);
                                 let (a_top, a_bot) = (&alpha[i..i + 2], &alpha[i + rw..i + rw + 2]);
                                 let (c_top, c_bot) = (&color[i..i + 2], &color[i + rw..i + rw + 2]);
-                                let a = w00 * a_top[0]
-                                    + w10 * a_top[1]
-                                    + w01 * a_bot[0]
-                                    + w11 * a_bot[1];
-                                let mut col = [0.0_f32; 3];
-                                for k in 0..3 {
-                                    col[k] = w00 * c_top[0][k]
-                                        + w10 * c_top[1][k]
-                                        + w01 * c_bot[0][k]
-                                        + w11 * c_bot[1][k];
-                                }
-                                (a, col)
+                                let [a] = bilinear::mix(
+                                    &w,
+                                    [[a_top[0]], [a_top[1]], [a_bot[0]], [a_bot[1]]],
+                                );
+                                let c = bilinear::mix(&w, [c_top[0], c_top[1], c_bot[0], c_bot[1]]);
+                                (a, [c[0], c[1], c[2]])
                             } else {
                                 // Border or outside: the general sampler (zero padding).
                                 sample(alpha, color, rw, rh, sxs[x], sys[x])
@@ -712,53 +701,39 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
 fn sample(
     alpha: &[f32],
     color: &[[f32; 4]],
-    w: usize,
+    wd: usize,
     h: usize,
     sx: f32,
     sy: f32,
 ) -> (f32, [f32; 3]) {
-    if !(sx > -1.0 && sy > -1.0 && sx < w as f32 && sy < h as f32) {
+    if !(sx > -1.0 && sy > -1.0 && sx < wd as f32 && sy < h as f32) {
         return (0.0, [0.0; 3]);
     }
     // floor() without a libm call (the baseline x86-64 target has no SSE4.1 rounding): the
     // shifted value is positive, so truncation is the floor.
     let x0 = (sx + 1.0) as isize - 1;
     let y0 = (sy + 1.0) as isize - 1;
-    let (ax, ay) = (sx - x0 as f32, sy - y0 as f32);
-    let wts = [
-        (1.0 - ax) * (1.0 - ay),
-        ax * (1.0 - ay),
-        (1.0 - ax) * ay,
-        ax * ay,
+    let w = bilinear::weights(sx - x0 as f32, sy - y0 as f32);
+    let inside =
+        |xx: isize, yy: isize| xx >= 0 && yy >= 0 && (xx as usize) < wd && (yy as usize) < h;
+    // Taps outside the image read zero (zero padding).
+    let tap = |xx: isize, yy: isize| -> ([f32; 1], [f32; 4]) {
+        if inside(xx, yy) {
+            let i = yy as usize * wd + xx as usize;
+            ([alpha[i]], color[i])
+        } else {
+            ([0.0], [0.0; 4])
+        }
+    };
+    let t = [
+        tap(x0, y0),
+        tap(x0 + 1, y0),
+        tap(x0, y0 + 1),
+        tap(x0 + 1, y0 + 1),
     ];
-    let mut a = 0.0;
-    let mut c = [0.0_f32; 3];
-    if x0 >= 0 && y0 >= 0 && (x0 as usize) + 1 < w && (y0 as usize) + 1 < h {
-        let i = y0 as usize * w + x0 as usize;
-        let (a_top, a_bot) = (&alpha[i..i + 2], &alpha[i + w..i + w + 2]);
-        let (c_top, c_bot) = (&color[i..i + 2], &color[i + w..i + w + 2]);
-        a = wts[0] * a_top[0] + wts[1] * a_top[1] + wts[2] * a_bot[0] + wts[3] * a_bot[1];
-        for k in 0..3 {
-            c[k] = wts[0] * c_top[0][k]
-                + wts[1] * c_top[1][k]
-                + wts[2] * c_bot[0][k]
-                + wts[3] * c_bot[1][k];
-        }
-    } else {
-        let taps = [(x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1)];
-        for k in 0..4 {
-            let (xx, yy) = taps[k];
-            if xx >= 0 && yy >= 0 && (xx as usize) < w && (yy as usize) < h {
-                let i = yy as usize * w + xx as usize;
-                a += wts[k] * alpha[i];
-                let t = color[i];
-                c[0] += wts[k] * t[0];
-                c[1] += wts[k] * t[1];
-                c[2] += wts[k] * t[2];
-            }
-        }
-    }
-    (a, c)
+    let [a] = bilinear::mix(&w, [t[0].0, t[1].0, t[2].0, t[3].0]);
+    let c = bilinear::mix(&w, [t[0].1, t[1].1, t[2].1, t[3].1]);
+    (a, [c[0], c[1], c[2]])
 }
 
 /// `Σ_i w_i · mni_i` per pixel, with `weights` `N × H × W` (normal-major).

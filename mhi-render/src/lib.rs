@@ -32,6 +32,7 @@
 //! assert!(view.image.as_raw().iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
 //! ```
 
+mod bilinear;
 mod cpu;
 #[cfg(feature = "diff")]
 pub mod diff;

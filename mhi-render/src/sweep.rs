@@ -8,6 +8,7 @@ use mhi_geom::{
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::bilinear;
 use crate::cpu::W_EPS;
 use crate::error::{Error, Result};
 use crate::mhi::{LayerColor, Mhi};
@@ -99,15 +100,15 @@ pub fn plane_sweep_volume(
                         (sx.floor() as usize).min(sw.saturating_sub(2)),
                         (sy.floor() as usize).min(sh.saturating_sub(2)),
                     );
-                    let (ax, ay) = ((sx - x0 as f64) as f32, (sy - y0 as f64) as f32);
+                    let wts = bilinear::weights((sx - x0 as f64) as f32, (sy - y0 as f64) as f32);
                     let x1 = (x0 + 1).min(sw - 1);
                     let y1 = (y0 + 1).min(sh - 1);
-                    let at = |xx: usize, yy: usize, k: usize| src[(yy * sw + xx) * 3 + k];
-                    for k in 0..3 {
-                        let top = at(x0, y0, k) * (1.0 - ax) + at(x1, y0, k) * ax;
-                        let bot = at(x0, y1, k) * (1.0 - ax) + at(x1, y1, k) * ax;
-                        rgb[(y * w + x) * 3 + k] = top * (1.0 - ay) + bot * ay;
-                    }
+                    let at = |xx: usize, yy: usize| -> [f32; 3] {
+                        let i = (yy * sw + xx) * 3;
+                        [src[i], src[i + 1], src[i + 2]]
+                    };
+                    let c = bilinear::mix(&wts, [at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1)]);
+                    rgb[(y * w + x) * 3..][..3].copy_from_slice(&c);
                     valid[y * w + x] = 1.0;
                 }
             }

@@ -3,7 +3,10 @@
 the machine): exit 0 when every score, count and label is identical, else print the first
 differences and exit 1. Used to check that a refactor leaves `cargo xtask eval` unchanged:
 
-    python3 xtask/scripts/same_report.py before/report.json after/report.json
+    python3 xtask/scripts/same_report.py before/report.json after/report.json [--tol 1e-6]
+
+With --tol, numbers may differ by that much (absolute) and the largest difference is printed:
+for a change that only reorders floating-point arithmetic.
 """
 import json
 import sys
@@ -23,7 +26,18 @@ def strip(v, path=""):
     return v
 
 
+TOL = 0.0
+LARGEST = [0.0, ""]
+
+
 def diff(a, b, path, out):
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool):
+        d = abs(a - b)
+        if d > LARGEST[0]:
+            LARGEST[0], LARGEST[1] = d, path
+        if d > TOL:
+            out.append(f"{path}: {a!r} != {b!r}")
+        return
     if type(a) is not type(b):
         out.append(f"{path}: {a!r} != {b!r}")
     elif isinstance(a, dict):
@@ -42,16 +56,25 @@ def diff(a, b, path, out):
 
 
 def main():
-    if len(sys.argv) != 3:
+    global TOL
+    args = sys.argv[1:]
+    if "--tol" in args:
+        i = args.index("--tol")
+        TOL = float(args[i + 1])
+        del args[i : i + 2]
+    if len(args) != 2:
         sys.exit(__doc__)
-    a, b = (strip(json.load(open(p))) for p in sys.argv[1:])
+    a, b = (strip(json.load(open(p))) for p in args)
     out = []
     diff(a, b, "", out)
     if out:
         print(f"{len(out)} differences; the first:")
         print("\n".join(out[:20]))
         sys.exit(1)
-    print("identical apart from times, date and machine")
+    if LARGEST[0] > 0:
+        print(f"equal within {TOL:g} apart from times, date and machine (largest difference {LARGEST[0]:.3g} at {LARGEST[1]})")
+    else:
+        print("identical apart from times, date and machine")
 
 
 if __name__ == "__main__":

@@ -86,7 +86,7 @@ impl Backbone {
         let path = dir.join(format!("{}.safetensors", net.file_stem()));
         let bytes = std::fs::read(&path).map_err(|e| {
             Error::Config(format!(
-                "{}: {e}; run `cargo xtask weights` to fetch the pretrained weights",
+                "{}: {e}; the pretrained weights are not there",
                 path.display()
             ))
         })?;

@@ -173,8 +173,9 @@ pub struct DepthRange {
     /// Nearest plane depth, in the cameras' units.
     #[arg(long, default_value_t = 1.0)]
     pub near: f64,
-    /// Farthest plane depth (the planes are linear in disparity between the two; the covered
-    /// region of a report is what the reference view sees on the fronto-parallel plane here).
+    /// Farthest plane depth (the planes are linear in disparity between the two; `eval`
+    /// scores the covered region: what the reference view sees on the fronto-parallel plane at
+    /// this depth).
     #[arg(long, default_value_t = 100.0)]
     pub far: f64,
 }

@@ -55,8 +55,9 @@ pub fn metrics(a: &MetricsArgs) -> anyhow::Result<()> {
             );
             continue;
         }
-        let bb = Backbone::load(&dir, net, &device)
-            .with_context(|| format!("{name} needs the pretrained weights"))?;
+        let bb = Backbone::load(&dir, net, &device).with_context(|| {
+            format!("{name} needs the pretrained weights (`cargo xtask weights` fetches them)")
+        })?;
         let v: Vec<f32> = bb
             .lpips(tx.clone(), ty.clone())
             .into_data()

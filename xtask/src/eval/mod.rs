@@ -397,7 +397,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let lpips_net = match Backbone::load(&weights_dir, Net::Alex, &cpu) {
         Ok(b) => Some(b),
         Err(e) => {
-            eprintln!("note: LPIPS not computed ({e})");
+            eprintln!("note: LPIPS not computed ({e}; `cargo xtask weights` fetches them)");
             None
         }
     };

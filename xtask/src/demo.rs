@@ -6,9 +6,18 @@ use std::time::Instant;
 
 use clap::{Args, Parser};
 
-use crate::eval::EvalArgs;
-use crate::train::TrainArgs;
-use crate::weights::WeightsArgs;
+use crate::options::{EvalArgs, TrainArgs, WeightsArgs};
+
+/// The commands the demo runs, handed over by `main.rs` (the demo imports no other command's
+/// module).
+pub struct Commands<'a> {
+    /// `cargo xtask weights`.
+    pub weights: &'a dyn Fn(&WeightsArgs) -> anyhow::Result<()>,
+    /// `cargo xtask train`.
+    pub train: &'a dyn Fn(&TrainArgs) -> anyhow::Result<()>,
+    /// `cargo xtask eval`.
+    pub eval: &'a dyn Fn(&EvalArgs) -> anyhow::Result<()>,
+}
 
 /// Options of `cargo xtask demo`.
 #[derive(Args, Debug)]
@@ -48,7 +57,12 @@ fn defaults<T: Args>() -> T {
 
 /// Train `run` (`set` adjusts the default options) unless it already finished; resume it if
 /// it was interrupted.
-fn train(run: &Path, a: &DemoArgs, set: impl FnOnce(&mut TrainArgs)) -> anyhow::Result<()> {
+fn train(
+    cmd: &Commands<'_>,
+    run: &Path,
+    a: &DemoArgs,
+    set: impl FnOnce(&mut TrainArgs),
+) -> anyhow::Result<()> {
     let dir = mhi_net::RunDir::new(run);
     if dir.finished() {
         println!("  {} already trained; reusing it", run.display());
@@ -70,11 +84,11 @@ fn train(run: &Path, a: &DemoArgs, set: impl FnOnce(&mut TrainArgs)) -> anyhow::
         }
         set(&mut t);
     }
-    crate::train::train(&t)
+    (cmd.train)(&t)
 }
 
 /// `cargo xtask demo`.
-pub fn demo(a: &DemoArgs) -> anyhow::Result<()> {
+pub fn demo(a: &DemoArgs, cmd: &Commands<'_>) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let stage = |k: usize, what: &str| {
         println!(
@@ -93,7 +107,7 @@ pub fn demo(a: &DemoArgs) -> anyhow::Result<()> {
     } else {
         let mut w = defaults::<WeightsArgs>();
         w.cache.clone_from(&a.cache);
-        if let Err(e) = crate::weights::weights(&w) {
+        if let Err(e) = (cmd.weights)(&w) {
             eprintln!(
                 "note: the pretrained weights could not be fetched ({e:#}); the demo goes on without LPIPS and trains with L1 + SSIM"
             );
@@ -104,12 +118,12 @@ pub fn demo(a: &DemoArgs) -> anyhow::Result<()> {
         3,
         "training the MHI model (N = 5 normals, default settings)",
     );
-    train(&runs.join("mhi"), a, |_| {})?;
+    train(cmd, &runs.join("mhi"), a, |_| {})?;
     stage(
         4,
         "training the MPI baseline (N = 1, same code and budget per step)",
     );
-    train(&runs.join("mpi"), a, |t| {
+    train(cmd, &runs.join("mpi"), a, |t| {
         t.normals = 1;
         t.phase2_steps = 0;
     })?;
@@ -136,7 +150,7 @@ pub fn demo(a: &DemoArgs) -> anyhow::Result<()> {
             crate::models::pretrained_dir().display()
         ),
     }
-    crate::eval::eval(&e)?;
+    (cmd.eval)(&e)?;
     println!(
         "demo finished in {:.1} min; report: {}",
         t0.elapsed().as_secs_f64() / 60.0,

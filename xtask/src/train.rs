@@ -1,135 +1,13 @@
 //! `cargo xtask train`: the two-phase training of an MHI model (or, with `--normals 1`, of the
 //! MPI baseline by the same code).
 
-use std::path::PathBuf;
-
 use anyhow::{Context, bail};
-use clap::Args;
 use mhi_data::DataSource;
 use mhi_net::loss::TrainLoss;
 use mhi_net::{TrainConfig, Trainer};
 
-use crate::common::{Backend, device};
-
-/// The training defaults, from one place: `TrainConfig` (the CLI shows them).
-fn defaults() -> TrainConfig {
-    TrainConfig::for_normals(5)
-}
-
-/// The training loss (`--loss`).
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LossArg {
-    /// The perceptual loss when the VGG16 weights are cached, else L1 + SSIM (said once).
-    Auto,
-    /// L1 + the VGG16 perceptual term; fails without the weights.
-    Perceptual,
-    /// L1 + SSIM.
-    Photometric,
-}
-
-/// What stage 1 starts from (`--prior`).
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum PriorArg {
-    /// Residuals on the training-free sweep and on Soft.
-    Sweep,
-    /// The paper's network without a prior.
-    None,
-}
-
-/// Options of `cargo xtask train`.
-#[derive(Args, Debug)]
-pub struct TrainArgs {
-    /// Run directory: config.json, log.csv, checkpoints, summary.json.
-    #[arg(long, default_value = "out/runs/mhi")]
-    pub run: PathBuf,
-    /// Dataset root in RealEstate10K layout (its train split is used); repeat to mix several
-    /// roots (e.g. synthetic + real). The default synthetic set is generated if missing.
-    /// Validation uses a root's `val` split when it has one, else its --holdout sequences.
-    #[arg(long, default_value = "data/synth")]
-    pub data: Vec<PathBuf>,
-    /// Weight of each --data root in the mix, in the same order (default: 1 each): a step draws
-    /// from a root with probability weight / total.
-    #[arg(long = "data-weight", value_delimiter = ',')]
-    pub data_weights: Vec<f64>,
-    /// Sequences kept out of training for validation, as ROOT/SEQUENCE with ROOT the folder name
-    /// of a --data root (e.g. `llff-6/room`); comma-separated or repeated.
-    #[arg(long, value_delimiter = ',')]
-    pub holdout: Vec<String>,
-    /// Continue the run in --run from its latest checkpoint (other options are read from its
-    /// config.json).
-    #[arg(long)]
-    pub resume: bool,
-    /// Number of normals: 1 (the MPI baseline), 2, 3 or 5.
-    #[arg(long, default_value_t = 5, value_parser = crate::common::parse_normals)]
-    pub normals: usize,
-    /// Planes per normal.
-    #[arg(long, default_value_t = defaults().planes)]
-    pub planes: usize,
-    /// What stage 1 starts from. `sweep`: it corrects the training-free sweep's alpha logits
-    /// and the blending network the log Soft weights, both with zero-initialised residuals, and
-    /// the loss scores covered pixels only (an untrained model renders the sweep blended with
-    /// Soft). `none`: the paper's network, alphas from the cost volume alone.
-    #[arg(long, value_enum, default_value_t = PriorArg::Sweep)]
-    pub prior: PriorArg,
-    /// Training resolution WIDTHxHEIGHT (divisible by 4).
-    #[arg(long, default_value = "64x64", value_parser = crate::common::parse_size)]
-    pub size: (u32, u32),
-    /// Channels of the first level of the stage-1 3D U-Net.
-    #[arg(long, default_value_t = defaults().stage1.unet.width)]
-    pub width: usize,
-    /// Run the stage-1 U-Net on the cost volume averaged over SCALE × SCALE pixel blocks and
-    /// upsample its output (1: full resolution). With the sweep prior only the residual is
-    /// coarse; the prior keeps full detail. About SCALE² times cheaper.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8))]
-    pub stage1_scale: u32,
-    /// Channels of the first level of the blending U-Net.
-    #[arg(long, default_value_t = defaults().blend.width)]
-    pub blend_width: usize,
-    /// Give every normal its own stage-1 network instead of sharing one.
-    #[arg(long)]
-    pub separate_weights: bool,
-    /// Phase-1 steps (stage 1).
-    #[arg(long, default_value_t = defaults().phase1_steps)]
-    pub phase1_steps: usize,
-    /// Phase-2 steps (blending network).
-    #[arg(long, default_value_t = defaults().phase2_steps)]
-    pub phase2_steps: usize,
-    /// Stop (with a checkpoint) after this many seconds, whatever the step count; resume later.
-    #[arg(long)]
-    pub time_budget: Option<f64>,
-    /// Learning rate (Adam).
-    #[arg(long, default_value_t = defaults().lr)]
-    pub lr: f64,
-    /// Seed of the weights and of the sampled triplets.
-    #[arg(long, default_value_t = defaults().seed)]
-    pub seed: u64,
-    /// Checkpoint every this many steps.
-    #[arg(long, default_value_t = defaults().checkpoint_every)]
-    pub checkpoint_every: usize,
-    /// Backend: flex (CPU, default) or wgpu (needs `--features wgpu`).
-    #[arg(long, value_enum, default_value_t = Backend::Flex)]
-    pub backend: Backend,
-    /// Held-out samples scored at every checkpoint into val.csv (the training curve; 0: off).
-    #[arg(long, default_value_t = defaults().val_samples)]
-    pub val_samples: usize,
-    /// Loss: `auto` (the paper's L1 + VGG perceptual loss when the VGG16 weights are in the
-    /// cache, else L1 + SSIM, said once), `perceptual` (fail without the weights) or
-    /// `photometric` (L1 + SSIM).
-    #[arg(long, value_enum, default_value_t = LossArg::Auto)]
-    pub loss: LossArg,
-    /// Factor of the VGG feature term against the pixel L1 in the perceptual loss. The default
-    /// was measured to improve both PSNR and LPIPS at the default budget; the paper's scale
-    /// (0.226) gains a little LPIPS but costs 1.0 dB at this budget (see
-    /// `mhi_net::loss::DEFAULT_PERCEPTUAL_WEIGHT`).
-    #[arg(long, default_value_t = mhi_net::loss::DEFAULT_PERCEPTUAL_WEIGHT)]
-    pub perceptual_weight: f32,
-    /// Weights cache (default: $MHI_CACHE, else ~/.cache/mhi); see `cargo xtask weights`.
-    #[arg(long)]
-    pub cache: Option<PathBuf>,
-    /// Validation samples for the closing comparison (learned vs Soft vs untrained).
-    #[arg(long, default_value_t = 12)]
-    pub eval_samples: usize,
-}
+use crate::common::device;
+use crate::options::{LossArg, PriorArg, TrainArgs};
 
 /// The data sources of `--data`, `--data-weight` and `--holdout`.
 pub fn sources(a: &TrainArgs) -> anyhow::Result<Vec<DataSource>> {

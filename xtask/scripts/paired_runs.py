@@ -1,0 +1,53 @@
+#!/usr/bin/env python3
+"""Paired covered-PSNR differences between two eval reports of the same triplets, for runs that
+one report cannot hold together (two runs with the same method, N and D share a row):
+
+    python3 xtask/scripts/paired_runs.py A/report.json B/report.json [--method mpi] [--baseline sweep]
+
+Prints, with 95 % percentile bootstrap intervals over triplets (2000 resamples, seed 0):
+METHOD − BASELINE within A, the same within B, and METHOD of A − METHOD of B, paired per triplet.
+"""
+import json
+import random
+import sys
+
+
+def by_triplet(path, method):
+    out = {}
+    for m in json.load(open(path))["measurements"]:
+        if m["method"] == method and m.get("psnr_covered") is not None:
+            out[m["triplet"]] = m["psnr_covered"]
+    return out
+
+
+def ci(d):
+    if not d:
+        return "no common triplets"
+    rng = random.Random(0)
+    bs = sorted(sum(rng.choice(d) for _ in d) / len(d) for _ in range(2000))
+    return f"{sum(d) / len(d):+.3f} [{bs[50]:+.3f}, {bs[1949]:+.3f}] (n={len(d)})"
+
+
+def paired(x, y):
+    return [x[k] - y[k] for k in x if k in y]
+
+
+def main():
+    args = sys.argv[1:]
+    opt = {"--method": "mpi", "--baseline": "sweep"}
+    for k in list(opt):
+        if k in args:
+            i = args.index(k)
+            opt[k] = args[i + 1]
+            del args[i : i + 2]
+    if len(args) != 2:
+        sys.exit(__doc__)
+    a, b = args
+    m, base = opt["--method"], opt["--baseline"]
+    print(f"A {m} - {base}: {ci(paired(by_triplet(a, m), by_triplet(a, base)))}")
+    print(f"B {m} - {base}: {ci(paired(by_triplet(b, m), by_triplet(b, base)))}")
+    print(f"A {m} - B {m}: {ci(paired(by_triplet(a, m), by_triplet(b, m)))}")
+
+
+if __name__ == "__main__":
+    main()

@@ -797,6 +797,30 @@ fn metrics_on_tiny_images_name_the_minimum_size() {
     }
 }
 
+/// `metrics` needing LPIPS with no weights in the cache says how to fetch them (the library's
+/// error names the file; the command line adds the command).
+#[test]
+fn metrics_without_weights_say_how_to_get_them() {
+    let d = tempfile::tempdir().unwrap();
+    let (a, b) = (d.path().join("a.png"), d.path().join("b.png"));
+    for (p, v) in [(&a, 10u8), (&b, 12)] {
+        image::RgbImage::from_pixel(40, 40, image::Rgb([v, 20, 30]))
+            .save(p)
+            .unwrap();
+    }
+    let err = fails(&[
+        "metrics",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--cache",
+        d.path().join("none").to_str().unwrap(),
+    ]);
+    assert!(
+        err.contains("alexnet.safetensors") && err.contains("cargo xtask weights"),
+        "{err}"
+    );
+}
+
 /// A start that fails (an unsupported normal count) leaves nothing behind, so the same command
 /// with a fixed option starts cleanly; `bench --json` refuses a device and `--runs 0`.
 #[test]

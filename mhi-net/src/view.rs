@@ -103,43 +103,34 @@ impl<'a> ViewSynthesis<'a> {
         source: &LoadedFrame,
     ) -> crate::Result<(Mhi, MhiTimes)> {
         let t0 = Instant::now();
-        match &self.source {
+        let mhi = match &self.source {
             MhiSource::Learned(m) => {
                 let input = m.stage1_input(reference, source)?;
                 let volume_ms = ms(t0);
                 let t1 = Instant::now();
                 let alphas = m.alphas(input)?;
                 let mhi = m.mhi(reference, alphas)?;
-                Ok((
+                return Ok((
                     mhi,
                     MhiTimes {
                         volume_ms,
                         network_ms: ms(t1),
                     },
-                ))
+                ));
             }
             MhiSource::Sweep {
                 normals,
                 depths,
                 config,
-            } => {
-                let mhi = sweep_mhi(
-                    normals,
-                    depths,
-                    &reference.camera,
-                    &reference.image,
-                    &source.camera,
-                    &source.image,
-                    config,
-                )?;
-                Ok((
-                    mhi,
-                    MhiTimes {
-                        volume_ms: ms(t0),
-                        network_ms: 0.0,
-                    },
-                ))
-            }
+            } => sweep_mhi(
+                normals,
+                depths,
+                &reference.camera,
+                &reference.image,
+                &source.camera,
+                &source.image,
+                config,
+            )?,
             MhiSource::Oracle {
                 normals,
                 depths,
@@ -154,23 +145,23 @@ impl<'a> ViewSynthesis<'a> {
                         reference.image.height()
                     )));
                 }
-                let alpha = oracle_alpha(normals, depths, &reference.camera, truth);
-                let mhi = Mhi::new(
+                Mhi::new(
                     normals.clone(),
                     depths.clone(),
                     reference.camera,
                     LayerColor::Shared(reference.image.clone()),
-                    alpha,
-                )?;
-                Ok((
-                    mhi,
-                    MhiTimes {
-                        volume_ms: ms(t0),
-                        network_ms: 0.0,
-                    },
-                ))
+                    oracle_alpha(normals, depths, &reference.camera, truth),
+                )?
             }
-        }
+        };
+        // Without a network, making the MHI is all "volume" time.
+        Ok((
+            mhi,
+            MhiTimes {
+                volume_ms: ms(t0),
+                network_ms: 0.0,
+            },
+        ))
     }
 
     /// Render `mhi` from `target` within `prune`'s budget (see [`render_view`]).

@@ -171,26 +171,6 @@ fn fill_volume(
     let pxb = wb * hb;
     let channels = if logits.is_some() { 7 } else { 6 };
     let refp = reference.as_raw();
-    let norm = 1.0 / (block * block) as f32;
-    // The block average of `value(p)` over pixel indices `p` of the full grid, into `dst`.
-    let pool = |dst: &mut [f32], value: &dyn Fn(usize) -> f32| {
-        if block == 1 {
-            for (p, v) in dst.iter_mut().enumerate() {
-                *v = value(p);
-            }
-            return;
-        }
-        dst.fill(0.0);
-        for y in 0..h {
-            let row = &mut dst[(y / block) * wb..][..wb];
-            for x in 0..w {
-                row[x / block] += value(y * w + x);
-            }
-        }
-        for v in dst.iter_mut() {
-            *v *= norm;
-        }
-    };
     let mut data = vec![0.0_f32; n * channels * d * pxb];
     // One chunk per (normal, channel): `d` planes of `pxb` values.
     data.par_chunks_mut(d * pxb)
@@ -199,21 +179,44 @@ fn fill_volume(
             let (i, c) = (k / channels, k % channels);
             for (j, dst) in chunk.chunks_exact_mut(pxb).enumerate() {
                 match c {
-                    0..3 => pool(dst, &|p| refp[3 * p + c]),
+                    0..3 => pool(dst, (w, h), block, |p| refp[3 * p + c]),
                     3..6 => {
                         let src = psv.plane_rgb(i, j);
-                        pool(dst, &|p| src[3 * p + c - 3]);
+                        pool(dst, (w, h), block, |p| src[3 * p + c - 3]);
                     }
                     _ => {
                         if let Some(l) = logits {
                             let l = &l[(i * d + j) * px..][..px];
-                            pool(dst, &|p| l[p] / LOGIT_INPUT_SCALE);
+                            pool(dst, (w, h), block, |p| l[p] / LOGIT_INPUT_SCALE);
                         }
                     }
                 }
             }
         });
     data
+}
+
+/// The average over `block × block` pixel blocks of `value(p)`, `p` the pixel index on the full
+/// `w × h` grid, into `dst` (`(w / block) · (h / block)` values; the sides divide by `block`).
+fn pool(dst: &mut [f32], (w, h): (usize, usize), block: usize, value: impl Fn(usize) -> f32) {
+    if block == 1 {
+        for (p, v) in dst.iter_mut().enumerate() {
+            *v = value(p);
+        }
+        return;
+    }
+    let wb = w / block;
+    dst.fill(0.0);
+    for y in 0..h {
+        let row = &mut dst[(y / block) * wb..][..wb];
+        for x in 0..w {
+            row[x / block] += value(y * w + x);
+        }
+    }
+    let norm = 1.0 / (block * block) as f32;
+    for v in dst.iter_mut() {
+        *v *= norm;
+    }
 }
 
 /// `log(c / (1 − c))` of the alpha clamped to `[PRIOR_EPS, 1 − PRIOR_EPS]`.

@@ -52,6 +52,18 @@ fn synthetic(
     d
 }
 
+/// A trainer of `cfg` on the synthetic set in `dir` (its run in `dir/run`), with L1 + SSIM.
+fn trainer(cfg: &TrainConfig, dir: &std::path::Path) -> Trainer {
+    Trainer::new(
+        cfg.clone(),
+        &dir.join("run"),
+        dir,
+        TrainLoss::Photometric,
+        Device::flex().autodiff(),
+    )
+    .unwrap()
+}
+
 fn options(blend: Blend<'_>) -> RenderOptions<'_> {
     RenderOptions {
         blend,
@@ -65,14 +77,7 @@ fn an_untrained_model_on_the_sweep_prior_renders_the_sweep_with_soft() {
     let d = synthetic(2, 6, (48, 48), 3);
     let cfg = config();
     assert_eq!(cfg.prior, Prior::Sweep);
-    let mut trainer = Trainer::new(
-        cfg.clone(),
-        &d.path().join("run"),
-        d.path(),
-        TrainLoss::Photometric,
-        Device::flex().autodiff(),
-    )
-    .unwrap();
+    let mut trainer = trainer(&cfg, d.path());
     let model = Model::untrained(cfg.clone(), Device::flex()).unwrap();
     let mut worst = 0.0_f32;
     for step in 0..3 {
@@ -165,14 +170,7 @@ fn the_block_averaged_volume_matches_stage_1s_own_pooling() {
     let mut cfg = config();
     cfg.width = 48;
     cfg.height = 32;
-    let trainer = Trainer::new(
-        cfg.clone(),
-        &d.path().join("run"),
-        d.path(),
-        TrainLoss::Photometric,
-        Device::flex().autodiff(),
-    )
-    .unwrap();
+    let trainer = trainer(&cfg, d.path());
     let s = trainer.sample(0).unwrap();
     let device = Device::flex();
     let prior = cfg.prior_sweep(48, 32);

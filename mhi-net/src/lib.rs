@@ -44,6 +44,7 @@
 
 pub mod backbone;
 mod config;
+pub mod fastconv;
 pub mod loss;
 mod model;
 mod nets;

@@ -79,6 +79,9 @@ pub fn conv3d_planes_as_2d(
     y.reshape([b, d, cout, ho, wo]).permute([0, 2, 1, 3, 4])
 }
 
+/// The layer norms' epsilon (burn's default, named: the module keeps its own private).
+const NORM_EPSILON: f64 = 1e-5;
+
 /// Convolution, layer normalisation over channels, ReLU.
 #[derive(Module, Debug)]
 pub struct Block3d {
@@ -94,20 +97,18 @@ impl Block3d {
                 .with_dilation([1, dilation, dilation])
                 .with_padding(PaddingConfig3d::Explicit(1, dilation, dilation))
                 .init(device),
-            norm: LayerNormConfig::new(cout).init(device),
+            norm: LayerNormConfig::new(cout)
+                .with_epsilon(NORM_EPSILON)
+                .init(device),
         }
     }
 
     /// # Shapes
     /// `[B, Cin, D, H, W]` → `[B, Cout, D, H/stride, W/stride]`
     fn forward(&self, x: Tensor<5>) -> Tensor<5> {
-        let x = self.conv.forward(x);
+        let x = crate::fastconv::forward(&self.conv, x);
         // Layer norm over channels: channels last, normalise, back.
-        let x = self
-            .norm
-            .forward(x.permute([0, 2, 3, 4, 1]))
-            .permute([0, 4, 1, 2, 3]);
-        relu(x)
+        relu(crate::fastconv::channel_norm(&self.norm, NORM_EPSILON, x))
     }
 }
 
@@ -198,7 +199,7 @@ impl UNet3d {
             let skip = skips.pop().expect("one skip per level");
             x = dec.forward(Tensor::cat(vec![up.forward(x), skip], 1));
         }
-        let y = self.head.forward(x);
+        let y = crate::fastconv::forward(&self.head, x);
         if self.residual { y } else { sigmoid(y) }
     }
 }
@@ -355,17 +356,15 @@ impl Block2d {
                 .with_stride([stride, stride])
                 .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
                 .init(device),
-            norm: LayerNormConfig::new(cout).init(device),
+            norm: LayerNormConfig::new(cout)
+                .with_epsilon(NORM_EPSILON)
+                .init(device),
         }
     }
 
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let x = self.conv.forward(x);
-        relu(
-            self.norm
-                .forward(x.permute([0, 2, 3, 1]))
-                .permute([0, 3, 1, 2]),
-        )
+        let x = crate::fastconv::forward2d(&self.conv, x);
+        relu(crate::fastconv::channel_norm(&self.norm, NORM_EPSILON, x))
     }
 }
 
@@ -431,7 +430,7 @@ impl BlendNet {
             let skip = skips.pop().expect("one skip per level");
             x = dec.forward(Tensor::cat(vec![up.forward(x), skip], 1));
         }
-        let logits = self.head.forward(x);
+        let logits = crate::fastconv::forward2d(&self.head, x);
         softmax(
             match prior {
                 Some(p) => p + logits,

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
+use anyhow::Context;
 use burn::tensor::Device;
 use image::Rgb32FImage;
 use mhi_data::SynthConfig;
@@ -160,7 +160,7 @@ pub fn device(backend: Backend) -> anyhow::Result<Device> {
         #[cfg(feature = "wgpu")]
         Backend::Wgpu => Ok(Device::wgpu(burn::tensor::DeviceKind::DefaultDevice)),
         #[cfg(not(feature = "wgpu"))]
-        Backend::Wgpu => bail!(
+        Backend::Wgpu => anyhow::bail!(
             "this build has no wgpu backend; build it with `cargo run -p xtask --features wgpu -- ...` (about 14 minutes from clean)"
         ),
     }

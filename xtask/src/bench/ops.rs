@@ -1,12 +1,12 @@
 //! `cargo xtask bench --ops`: every kind of op of the default model's training step timed alone
 //! on its real shapes (stage 1's 3D U-Net at 64 × 64 with N = 5, D = 8; the VGG16 taps of the
-//! perceptual loss; the warp's grid sample; layer norm through permutes), forward and forward +
+//! perceptual loss; the warp; the layer norm over channels), forward and forward +
 //! backward, beside the same ops in PyTorch (`xtask/scripts/ops_torch.py`) in the same run.
 
 use std::path::Path;
 
-use burn::tensor::module::{conv_transpose3d, conv2d, conv3d};
-use burn::tensor::ops::{ConvOptions, ConvTransposeOptions, GridSampleOptions};
+use burn::tensor::module::conv_transpose3d;
+use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
 use burn::tensor::{Device, Distribution, Tensor};
 
 use super::median_ms;
@@ -58,7 +58,9 @@ fn op_fn(op: &OpSpec, device: &Device, grad: bool) -> Box<dyn Fn() -> Tensor<1>>
             let x = g(rand(dims5(&op.input), device));
             let w = g(rand([op.cout, op.input[1], 3, 3, 3], device));
             let o = ConvOptions::new([1, s, s], [1, dl, dl], [1, dl, dl], 1);
-            Box::new(move || conv3d(x.clone(), w.clone(), None, o.clone()).mean())
+            Box::new(move || {
+                mhi_net::fastconv::conv3d(x.clone(), w.clone(), None, o.clone()).mean()
+            })
         }
         "conv3d_as_2d" => {
             let x = g(rand(dims5(&op.input), device));
@@ -74,30 +76,37 @@ fn op_fn(op: &OpSpec, device: &Device, grad: bool) -> Box<dyn Fn() -> Tensor<1>>
             Box::new(move || conv_transpose3d(x.clone(), w.clone(), None, o.clone()).mean())
         }
         "layernorm5" => {
+            // The model's layer norm over channels (no permutes on the CPU backend; PyTorch's
+            // twin permutes the channels last and back).
             let norm = burn::nn::LayerNormConfig::new(op.input[1]).init(device);
             let x = g(rand(dims5(&op.input), device));
-            Box::new(move || {
-                norm.forward(x.clone().permute([0, 2, 3, 4, 1]))
-                    .permute([0, 4, 1, 2, 3])
-                    .mean()
-            })
+            Box::new(move || mhi_net::fastconv::channel_norm(&norm, 1e-5, x.clone()).mean())
         }
         "conv2d" => {
             let x = g4(rand(dims4(&op.input), device));
             let w = g4(rand([op.cout, op.input[1], 3, 3], device));
             let o = ConvOptions::new([1, 1], [1, 1], [1, 1], 1);
-            Box::new(move || conv2d(x.clone(), w.clone(), None, o.clone()).mean())
+            Box::new(move || {
+                mhi_net::fastconv::conv2d(x.clone(), w.clone(), None, o.clone()).mean()
+            })
         }
         _ => {
-            // grid_sample: bilinear, zero padding, the warp's layout.
+            // The warp: bilinear, zero padding, the warp's layout. On the CPU backend the model
+            // gathers through taps built once per sample from its grid (`mhi_render::diff::Taps`,
+            // outside the timing, as in training); elsewhere it is `grid_sample`.
             let [b, c, h, w] = dims4(&op.input);
             let x = g4(rand([b, c, h, w], device));
             let grid: Tensor<4> = rand([b, h, w, 2], device);
-            Box::new(move || {
-                x.clone()
-                    .grid_sample_2d(grid.clone(), GridSampleOptions::default())
-                    .mean()
-            })
+            let values = grid.to_data().convert::<f32>().try_to_vec::<f32>().unwrap_or_default();
+            let valid = vec![1.0f32; b * h * w];
+            let taps = std::sync::Arc::new(mhi_render::diff::Taps::new(
+                &values,
+                &valid,
+                b,
+                (w, h),
+                (w, h),
+            ));
+            Box::new(move || mhi_render::diff::gather::warp(x.clone(), &taps).mean())
         }
     }
 }

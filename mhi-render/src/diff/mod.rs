@@ -10,6 +10,10 @@ use mhi_geom::{BlendHeuristic, Camera, NormalSet};
 use crate::cpu::{W_EPS, row_major_f32};
 use crate::error::{Error, Result};
 
+pub mod gather;
+
+pub use gather::Taps;
+
 /// Sampling grids of every layer for one (reference, target) pair, as constant tensors.
 #[derive(Debug, Clone)]
 pub struct WarpGeometry {
@@ -28,6 +32,9 @@ pub struct WarpGeometry {
     pub valid: Tensor<4>,
     /// 1 on the farthest layer of each normal (forced opaque), `[N·D, 1, 1, 1]`.
     pub far: Tensor<4>,
+    /// The same warp as bilinear taps (built on the CPU backend, where [`warp`] gathers through
+    /// them instead of calling `grid_sample`).
+    pub taps: Option<std::sync::Arc<Taps>>,
 }
 
 impl WarpGeometry {
@@ -83,11 +90,20 @@ impl WarpGeometry {
         let far: Vec<f32> = (0..n * d)
             .map(|l| if l % d == 0 { 1.0 } else { 0.0 })
             .collect();
+        let on_cpu = matches!(
+            device.as_dispatch().clone().inner(),
+            burn::backend::DispatchDevice::Flex(_)
+        );
+        let taps = on_cpu.then(|| {
+            let source = (reference.width as usize, reference.height as usize);
+            std::sync::Arc::new(Taps::new(&grid, &valid, n * d, source, (w, h)))
+        });
         Ok(Self {
             n,
             d,
             height: h,
             width: w,
+            taps,
             grid: Tensor::from_data(TensorData::new(grid, [n * d, h, w, 2]), device),
             valid: Tensor::from_data(TensorData::new(valid, [n * d, 1, h, w]), device),
             far: Tensor::from_data(TensorData::new(far, [n * d, 1, 1, 1]), device),
@@ -124,6 +140,9 @@ pub fn heuristic_weights_tensor(
 /// - `layers`: `[N·D, C, Hr, Wr]` (alpha and/or colour on the reference grid)
 /// - returns `[N·D, C, H, W]`, zero where the sample is invalid or outside the reference image.
 pub fn warp(layers: Tensor<4>, geom: &WarpGeometry) -> Tensor<4> {
+    if let Some(taps) = geom.taps.as_ref().filter(|_| gather::on_flex(&layers)) {
+        return gather::warp(layers, taps);
+    }
     let warped = layers.grid_sample_2d(geom.grid.clone(), GridSampleOptions::default());
     warped * geom.valid.clone()
 }

@@ -97,7 +97,11 @@ fn op_fn(op: &OpSpec, device: &Device, grad: bool) -> Box<dyn Fn() -> Tensor<1>>
             let [b, c, h, w] = dims4(&op.input);
             let x = g4(rand([b, c, h, w], device));
             let grid: Tensor<4> = rand([b, h, w, 2], device);
-            let values = grid.to_data().convert::<f32>().try_to_vec::<f32>().unwrap_or_default();
+            let values = grid
+                .to_data()
+                .convert::<f32>()
+                .try_to_vec::<f32>()
+                .unwrap_or_default();
             let valid = vec![1.0f32; b * h * w];
             let taps = std::sync::Arc::new(mhi_render::diff::Taps::new(
                 &values,

@@ -27,7 +27,8 @@ use burn_flex::{Flex, FlexTensor};
 
 use kernel::ConvShape;
 
-/// The convolution and its two gradients, as backend operations.
+/// The convolution and its two gradients, and the layer norm over channels and its gradients, as
+/// backend operations.
 #[backend_extension(Flex, Autodiff)]
 pub trait FastOps: Backend {
     /// `conv3d(x, weight)` without bias.
@@ -793,62 +794,6 @@ mod tests {
                     "{shape:?}: gradient of {name} differs by {err} (relative)"
                 );
             }
-        }
-    }
-
-    #[test]
-    #[ignore = "timing, not a check: cargo test -p mhi-net --lib fastconv -- --ignored --nocapture"]
-    fn timing() {
-        let dev = Device::flex();
-        for (cin, cout, hw, st, dl) in [
-            (6, 8, 64, 1, 1),
-            (16, 8, 64, 1, 1),
-            (32, 32, 16, 1, 4),
-            (8, 16, 64, 2, 1),
-        ] {
-            let s = ConvShape {
-                batch: 5,
-                cin,
-                cout,
-                input: [8, hw, hw],
-                kernel: [3; 3],
-                stride: [1, st, st],
-                dilation: [1, dl, dl],
-                padding: [1, dl, dl],
-            };
-            let x = Tensor::<5>::random([5, cin, 8, hw, hw], Distribution::Uniform(-1., 1.), &dev);
-            let w = Tensor::<5>::random([cout, cin, 3, 3, 3], Distribution::Uniform(-1., 1.), &dev);
-            let (xv, wv) = (values(&x), values(&w));
-            let o = ConvOptions::new(s.stride, s.padding, s.dilation, 1);
-            let t = std::time::Instant::now();
-            for _ in 0..5 {
-                let _ = values(&burn::tensor::module::conv3d(
-                    x.clone(),
-                    w.clone(),
-                    None,
-                    o.clone(),
-                ));
-            }
-            let burn = t.elapsed().as_secs_f64() * 200.0;
-            let t = std::time::Instant::now();
-            for _ in 0..5 {
-                let _ = forward(&s, &xv, &wv, None);
-            }
-            let ours = t.elapsed().as_secs_f64() * 200.0;
-            let y = forward(&s, &xv, &wv, None);
-            let t = std::time::Instant::now();
-            for _ in 0..5 {
-                let _ = grad_weight(&s, &xv, &y);
-            }
-            let gw = t.elapsed().as_secs_f64() * 200.0;
-            let t = std::time::Instant::now();
-            for _ in 0..5 {
-                let _ = grad_input(&s, &wv, &y);
-            }
-            let gx = t.elapsed().as_secs_f64() * 200.0;
-            println!(
-                "{cin}->{cout} @{hw} s{st} d{dl}: burn fwd {burn:.1} ms, ours fwd {ours:.1}, gw {gw:.1}, gx {gx:.1}"
-            );
         }
     }
 }

@@ -69,6 +69,14 @@ pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<se
     let stage1_both = median_ms(runs, || {
         let _ = stage1.forward(volume.clone()).mean().backward();
     });
+    // Inference: the same network on the plain device, no graph (PyTorch's twin: its frozen
+    // stage 1 under `no_grad` in the phase-2 step).
+    let plain = Device::flex();
+    let (stage1_plain, _) = init_models(&config, &plain);
+    let volume_plain = cost_volume(&normals, &depths, &rf, &sf, &plain)?;
+    let stage1_infer = median_ms(runs, || {
+        sync(stage1_plain.forward(volume_plain.clone()).mean())
+    });
     let alpha: Tensor<4> =
         Tensor::random([n * d, 1, h, w], Distribution::Uniform(0.0, 1.0), &device).require_grad();
     let warp_fwd = median_ms(runs, || {
@@ -94,7 +102,7 @@ pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<se
     let rows = [
         ("cost volume (CPU plane sweep)", volume_ms, volume_ms),
         ("stage 1 (3D U-Net, conv3d)", stage1_fwd, stage1_both),
-        ("warp + composite (grid_sample)", warp_fwd, warp_both),
+        ("warp + composite", warp_fwd, warp_both),
         ("loss", loss_fwd, loss_both),
     ];
     let total: f64 = rows.iter().map(|r| r.2).sum();
@@ -115,10 +123,15 @@ pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<se
         );
     }
     println!("{:<34} {:>8} {total:>10.1}ms", "sum", "");
+    println!(
+        "{:<34} {stage1_infer:>8.1}ms",
+        "stage 1 inference (no graph)"
+    );
     Ok(serde_json::json!({
         "normals": n, "planes": d, "size": [w, h], "loss": loss.name(), "runs": runs,
         "volume_ms": volume_ms,
         "stage1_forward_ms": stage1_fwd, "stage1_forward_backward_ms": stage1_both,
+        "stage1_inference_ms": stage1_infer,
         "warp_forward_ms": warp_fwd, "warp_forward_backward_ms": warp_both,
         "loss_forward_ms": loss_fwd, "loss_forward_backward_ms": loss_both,
     }))
@@ -200,6 +213,18 @@ pub fn peer_train_step(
         sum_b / sum_t
     );
     ratios.insert("step".into(), serde_json::json!(sum_b / sum_t));
+    let (b, t) = (
+        ours["stage1_inference_ms"].as_f64().unwrap_or(f64::NAN),
+        torch["phase2_step_ms"]["stage1_frozen_fwd"]
+            .as_f64()
+            .unwrap_or(f64::NAN),
+    );
+    println!(
+        "{:<20} {b:>10.1} {t:>10.1} {:>7.2}x  (no graph; PyTorch: its frozen stage 1 under no_grad)",
+        "stage 1 inference",
+        b / t
+    );
+    ratios.insert("stage1_inference".into(), serde_json::json!(b / t));
     torch["ratio_burn_over_torch"] = serde_json::Value::Object(ratios);
     Ok(torch)
 }

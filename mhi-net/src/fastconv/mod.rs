@@ -1,4 +1,4 @@
-//! A faster 3D convolution for the CPU backend, with its own backward.
+//! The CPU backend's own convolution and layer-norm kernels, each with its own backward.
 //!
 //! burn-flex's `conv3d` builds a channels-last copy of the input and im2col tiles one output
 //! position per row, and its gradients go through a transposed convolution; on stage 1's shapes
@@ -8,7 +8,9 @@
 //! (the input's as a convolution of the output gradient with the flipped kernel, the weight's as
 //! the output gradient times the same columns). It is a burn backend extension: on `flex`
 //! (plain or autodiff) it runs these kernels; on any other device, and for what the kernels do not
-//! cover (groups, f64, asymmetric padding), it is burn's `conv3d`.
+//! cover (groups, f64, asymmetric padding), it is burn's `conv3d`. [`conv2d`] is the same kernel
+//! on one plane. [`channel_norm`] is layer normalisation over the channel axis without the two
+//! permutes burn's last-axis layer norm needs ([`norm`]).
 
 pub mod kernel;
 pub mod norm;

@@ -22,12 +22,13 @@ use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
 use burn::backend::autodiff::{Autodiff, NodeId};
 use burn::backend::ops::ModuleOps;
 use burn::backend::tensor::FloatTensor;
-use burn::backend::{Backend, DispatchDevice, TensorMetadata, backend_extension};
+use burn::backend::{Backend, TensorMetadata, backend_extension};
 use burn::tensor::ops::ConvOptions;
 use burn::tensor::{DType, Tensor};
 use burn_flex::{Flex, FlexTensor};
 
 use kernel::ConvShape;
+use mhi_render::diff::gather::f32_contiguous as f32s;
 
 /// The convolution and its two gradients, and the layer norm over channels and its gradients, as
 /// backend operations.
@@ -108,10 +109,7 @@ pub fn conv3d(
 
 /// Whether `x` lives on the CPU backend (plain or autodiff), where [`FastOps`] runs its kernels.
 fn on_flex<const D: usize>(x: &Tensor<D>) -> bool {
-    matches!(
-        x.device().as_dispatch().clone().inner(),
-        DispatchDevice::Flex(_)
-    )
+    mhi_render::diff::gather::on_cpu_backend(&x.device())
 }
 
 /// Layer normalisation of `x` (`[B, C, …]`) over its channel axis with `norm`'s scale and shift
@@ -312,15 +310,6 @@ fn norm_shape(shape: &[usize]) -> norm::NormShape {
         batch: shape[0],
         channels: shape[1],
         positions: shape[2..].iter().product(),
-    }
-}
-
-/// `t` contiguous in f32 (the model's dtype; other dtypes are converted).
-fn f32s(t: FlexTensor) -> FlexTensor {
-    if t.dtype() == DType::F32 {
-        t.to_contiguous()
-    } else {
-        FlexTensor::from_data(t.into_data().convert::<f32>())
     }
 }
 

@@ -19,7 +19,7 @@ use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
 use burn::backend::tensor::FloatTensor;
 use burn::backend::{Backend, DispatchDevice, TensorMetadata, backend_extension};
-use burn::tensor::{DType, Tensor, TensorData};
+use burn::tensor::{DType, Device, Tensor, TensorData};
 use burn_flex::{Flex, FlexTensor};
 use rayon::prelude::*;
 
@@ -138,10 +138,11 @@ pub trait WarpOps: Backend {
     fn gather_warp_backward(grad: FloatTensor<Self>, taps: Arc<Taps>) -> FloatTensor<Self>;
 }
 
-/// Whether `x` lives on the CPU backend (plain or autodiff).
-pub(crate) fn on_flex(x: &Tensor<4>) -> bool {
+/// Whether `device` is the CPU backend (plain or autodiff), where the project's own kernels
+/// (this warp, `mhi_net::fastconv`) run.
+pub fn on_cpu_backend(device: &Device) -> bool {
     matches!(
-        x.device().as_dispatch().clone().inner(),
+        device.as_dispatch().clone().inner(),
         DispatchDevice::Flex(_)
     )
 }
@@ -153,7 +154,9 @@ pub fn warp(layers: Tensor<4>, taps: &Arc<Taps>) -> Tensor<4> {
     Tensor::<4>::from_dispatch(out)
 }
 
-fn f32_contiguous(t: FlexTensor) -> FlexTensor {
+/// `t` contiguous in f32 (the models' dtype; other dtypes are converted), for a kernel that reads
+/// its storage as a slice.
+pub fn f32_contiguous(t: FlexTensor) -> FlexTensor {
     if t.dtype() == DType::F32 {
         t.to_contiguous()
     } else {

@@ -90,11 +90,7 @@ impl WarpGeometry {
         let far: Vec<f32> = (0..n * d)
             .map(|l| if l % d == 0 { 1.0 } else { 0.0 })
             .collect();
-        let on_cpu = matches!(
-            device.as_dispatch().clone().inner(),
-            burn::backend::DispatchDevice::Flex(_)
-        );
-        let taps = on_cpu.then(|| {
+        let taps = gather::on_cpu_backend(device).then(|| {
             let source = (reference.width as usize, reference.height as usize);
             std::sync::Arc::new(Taps::new(&grid, &valid, n * d, source, (w, h)))
         });
@@ -140,7 +136,11 @@ pub fn heuristic_weights_tensor(
 /// - `layers`: `[N·D, C, Hr, Wr]` (alpha and/or colour on the reference grid)
 /// - returns `[N·D, C, H, W]`, zero where the sample is invalid or outside the reference image.
 pub fn warp(layers: Tensor<4>, geom: &WarpGeometry) -> Tensor<4> {
-    if let Some(taps) = geom.taps.as_ref().filter(|_| gather::on_flex(&layers)) {
+    if let Some(taps) = geom
+        .taps
+        .as_ref()
+        .filter(|_| gather::on_cpu_backend(&layers.device()))
+    {
         return gather::warp(layers, taps);
     }
     let warped = layers.grid_sample_2d(geom.grid.clone(), GridSampleOptions::default());

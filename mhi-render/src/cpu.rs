@@ -40,7 +40,8 @@ pub enum Blend<'a> {
 ///   a_j times a colour difference of at most 1), so the skipped mass is accumulated, not
 ///   bounded per layer;
 /// - **transmittance** — a pixel stops compositing once its remaining transmittance is within
-///   its share: what lies behind adds at most that much.
+///   its share, plus whatever layer share its tile did not spend: what lies behind adds at most
+///   that much. Both passes of a tile's row run over the span of pixels still open.
 ///
 /// The farthest layer of each normal is never skipped, and at least one normal is kept.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -526,10 +527,8 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
     }
     let tiles_x = tw.div_ceil(TILE_W);
     let tiles = tile_plans(mhi, &hs, &active, &global_skip, share, (tw, th));
-    let mut skipped_mass_max = 0.0_f32;
     let (mut pairs, mut composited) = (0_usize, 0_usize);
     for t in &tiles {
-        skipped_mass_max = skipped_mass_max.max(t.mass);
         pairs += t.visible;
         composited += t.layers.iter().map(Vec::len).sum::<usize>();
     }
@@ -550,7 +549,21 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
         LayerColor::Shared(_) => Vec::new(),
         LayerColor::PerLayer(v) => v.iter().map(texels).collect(),
     };
-    stats.bound = skipped_mass_max + dropped_max + eps;
+    // A tile that leaves out less layer mass than its share passes the rest on to its
+    // transmittance stop: its pixels stop at `eps + share − mass`, so every pixel's bound is
+    // still dropped weight + layer mass + stop ≤ the budget.
+    let stop_of = |tile: &TilePlan| {
+        if eps > 0.0 {
+            eps + (share - tile.mass).max(0.0)
+        } else {
+            0.0
+        }
+    };
+    stats.bound = dropped_max
+        + tiles
+            .iter()
+            .map(|t| t.mass + stop_of(t))
+            .fold(0.0_f32, f32::max);
     let keep = opts.keep_multi_normal;
     // Each row: blended RGB (W·3) and, if kept, the N multi-normal rows (N·W·3).
     let rows: Vec<(Vec<f32>, Vec<f32>)> = (0..th)
@@ -576,8 +589,12 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
                 }
                 c.fill(0.0);
                 t.fill(1.0);
-                for (tile, x0) in band.iter().zip((0..tw).step_by(TILE_W)) {
-                    let x1 = (x0 + TILE_W).min(tw);
+                for (tile, x_start) in band.iter().zip((0..tw).step_by(TILE_W)) {
+                    // The span of the tile's row still open (transmittance above the stop):
+                    // pixels that stopped stay stopped, so it only shrinks, and both passes
+                    // below run over it alone.
+                    let (mut x0, mut x1) = (x_start, (x_start + TILE_W).min(tw));
+                    let eps = stop_of(tile);
                     for &j in &tile.layers[i] {
                         let (h, far) = (hs[i * d + j].unwrap_or([0.0; 9]), j == 0);
                         let alpha = mhi.alpha_layer(i, j);
@@ -651,9 +668,18 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
                             cx[2] += ta * col[2];
                             *tx -= ta;
                         }
-                        // Every pixel of the tile's row is opaque: farther layers cannot show.
-                        if stop && t[x0..x1].iter().all(|v| *v <= eps) {
-                            break;
+                        if stop {
+                            while x0 < x1 && t[x0] <= eps {
+                                x0 += 1;
+                            }
+                            while x1 > x0 && t[x1 - 1] <= eps {
+                                x1 -= 1;
+                            }
+                            // Every pixel of the tile's row is opaque: farther layers cannot
+                            // show.
+                            if x0 == x1 {
+                                break;
+                            }
                         }
                     }
                 }

@@ -126,6 +126,11 @@ pub struct RenderStats {
     /// the layers that are faint over the part of them the tile sees (1 when nothing is left
     /// out).
     pub composited: f32,
+    /// Share of the (target pixel, visible layer) samples of all normals that were composited
+    /// (1 when nothing is left out): what the tiles skip, what the transmittance stop skips and
+    /// the dropped normals together.
+    #[serde(default)]
+    pub samples: f32,
     /// The bound the render guarantees: the largest change any pixel can see from what was
     /// left out (skipped alpha mass of the worst normal + dropped blend weight of the worst
     /// pixel + the transmittance at which compositing stops), at most the budget.
@@ -566,7 +571,7 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
             .fold(0.0_f32, f32::max);
     let keep = opts.keep_multi_normal;
     // Each row: blended RGB (W·3) and, if kept, the N multi-normal rows (N·W·3).
-    let rows: Vec<(Vec<f32>, Vec<f32>)> = (0..th)
+    let rows: Vec<(Vec<f32>, Vec<f32>, usize)> = (0..th)
         .into_par_iter()
         .map(|y| {
             let mut out = vec![0.0_f32; tw * 3];
@@ -581,6 +586,7 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
             let (mut fxs, mut fys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
             let mut idx = vec![0_u32; tw];
             let stop = eps > 0.0;
+            let mut samples = 0_usize;
             let v = y as f32 + 0.5;
             let band = &tiles[(y / TILE_H) * tiles_x..][..tiles_x];
             for i in 0..n {
@@ -646,6 +652,7 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
                             if stop && *tx <= eps {
                                 continue;
                             }
+                            samples += 1;
                             let (a, col) = if idx[x] != u32::MAX {
                                 let i = idx[x] as usize;
                                 let w = bilinear::weights(fxs[x], fys[x]);
@@ -693,7 +700,7 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
                     mni[i * tw * 3..(i + 1) * tw * 3].copy_from_slice(&c);
                 }
             }
-            (out, mni)
+            (out, mni, samples)
         })
         .collect();
     let mut image = Rgb32FImage::new(target.width, target.height);
@@ -702,7 +709,14 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
     } else {
         Vec::new()
     };
-    for (y, (row, mni)) in rows.iter().enumerate() {
+    let visible_samples = px * (0..n * d).filter(|k| hs[*k].is_some()).count();
+    let done: usize = rows.iter().map(|r| r.2).sum();
+    stats.samples = if visible_samples > 0 {
+        done as f32 / visible_samples as f32
+    } else {
+        1.0
+    };
+    for (y, (row, mni, _)) in rows.iter().enumerate() {
         let dst = &mut image.as_mut()[y * tw * 3..(y + 1) * tw * 3];
         dst.copy_from_slice(row);
         if keep {
@@ -717,6 +731,79 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
         multi_normal,
         weights,
         stats,
+    })
+}
+
+/// The least share of the (target pixel, visible layer) samples any render within `budget` must
+/// composite, under the accounting of [`Prune`]: an ideal plan that knew every pixel's exact
+/// contributions — blend weight × transmittance × alpha of each sample, `weights` being the
+/// normalised blend weights (`N × H × W`) — and left out, per pixel, the faintest samples while
+/// their summed contributions stay within the budget. A render that charges each sample it
+/// leaves out at least that much (as [`render`] does: colours differ by at most 1, its
+/// transmittance is never below the exact one) composites at least this share, so `1 / share`
+/// is the most leaving out can speed a view up, whatever the plan.
+///
+/// # Errors
+/// For blend weights of the wrong size.
+pub fn needed_share(mhi: &Mhi, target: &Camera, weights: &[f32], budget: f32) -> Result<f32> {
+    let (n, d) = (mhi.n(), mhi.d());
+    let (tw, th) = (target.width as usize, target.height as usize);
+    let weights = normalised_weights(weights, n, tw * th)?;
+    let hs = layer_homographies(mhi, target);
+    let (rw, rh) = (
+        mhi.reference().width as usize,
+        mhi.reference().height as usize,
+    );
+    let zero = vec![[0.0_f32; 4]; rw * rh];
+    let (total, needed) = (0..th)
+        .into_par_iter()
+        .map(|y| {
+            let (mut total, mut needed) = (0_usize, 0_usize);
+            let mut items = Vec::with_capacity(n * d);
+            let v = y as f32 + 0.5;
+            for x in 0..tw {
+                let u = x as f32 + 0.5;
+                items.clear();
+                for i in 0..n {
+                    let w = weights[i * tw * th + y * tw + x];
+                    let mut t = 1.0_f32;
+                    for j in (0..d).rev() {
+                        let Some(h) = hs[i * d + j].as_ref() else {
+                            continue;
+                        };
+                        let hw = h[6] * u + h[7] * v + h[8];
+                        let a = if j == 0 {
+                            1.0
+                        } else if hw > W_EPS {
+                            let sx = (h[0] * u + h[1] * v + h[2]) / hw - 0.5;
+                            let sy = (h[3] * u + h[4] * v + h[5]) / hw - 0.5;
+                            sample(mhi.alpha_layer(i, j), &zero, rw, rh, sx, sy).0
+                        } else {
+                            0.0
+                        };
+                        items.push(w * t * a);
+                        t *= 1.0 - a;
+                    }
+                }
+                items.sort_by(f32::total_cmp);
+                let mut spent = 0.0_f32;
+                let left_out = items
+                    .iter()
+                    .take_while(|c| {
+                        spent += **c;
+                        spent <= budget
+                    })
+                    .count();
+                total += items.len();
+                needed += items.len() - left_out;
+            }
+            (total, needed)
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    Ok(if total > 0 {
+        needed as f32 / total as f32
+    } else {
+        1.0
     })
 }
 

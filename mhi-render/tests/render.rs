@@ -480,3 +480,52 @@ fn layers_are_skipped_per_tile_where_faint_or_hidden() {
         s.bound
     );
 }
+
+/// The least share of samples a render within the budget must composite: behind an opaque
+/// nearest layer nothing contributes, so exactly one layer in D is needed; on a random MHI the
+/// pruned render composites no fewer samples than that least share, the exact one all of them.
+#[test]
+fn the_needed_share_is_a_floor_of_what_a_pruned_render_composites() {
+    let (n, d, w, h) = (3, 4, 24, 20);
+    let px = (w * h) as usize;
+    let mut mhi = random_mhi(n, d, w, h, false, 3);
+    let mut alpha = mhi.alpha().to_vec();
+    for i in 0..n {
+        alpha[(i * d + d - 1) * px..(i * d + d) * px].fill(1.0);
+    }
+    mhi = Mhi::new(
+        mhi.normals().clone(),
+        mhi.depths().to_vec(),
+        *mhi.reference(),
+        mhi.color().clone(),
+        alpha,
+    )
+    .unwrap();
+    let soft = mhi_render::heuristic_weights(&mhi, mhi.reference(), BlendHeuristic::Soft);
+    let needed = mhi_render::needed_share(&mhi, mhi.reference(), &soft, 0.0).unwrap();
+    assert!((needed - 1.0 / d as f32).abs() < 1e-6, "{needed}");
+    // Weights of the wrong size are an error, not a panic.
+    assert!(mhi_render::needed_share(&mhi, mhi.reference(), &soft[1..], 0.0).is_err());
+
+    let mhi = random_mhi(5, 16, 64, 48, false, 11);
+    let tgt = target(&mhi, 3.0, -2.0, DVec3::new(0.05, 0.02, 0.03));
+    let soft = mhi_render::heuristic_weights(&mhi, &tgt, BlendHeuristic::Soft);
+    for budget in [1.0 / 255.0, 8.0 / 255.0] {
+        let prune = Prune::with_budget(budget);
+        let needed = mhi_render::needed_share(&mhi, &tgt, &soft, budget).unwrap();
+        let opts = |prune| RenderOptions {
+            blend: Blend::Heuristic(BlendHeuristic::Soft),
+            prune,
+            ..Default::default()
+        };
+        let pruned = render(&mhi, &tgt, &opts(prune)).unwrap();
+        let exact = render(&mhi, &tgt, &opts(Prune::NONE)).unwrap();
+        assert_eq!(exact.stats.samples, 1.0);
+        assert!(needed > 0.0 && needed < 1.0, "{needed}");
+        assert!(
+            pruned.stats.samples >= needed && pruned.stats.samples < 1.0,
+            "composited {} of the samples, the least possible is {needed}",
+            pruned.stats.samples
+        );
+    }
+}

@@ -128,6 +128,12 @@ impl Ctx<'_> {
                         image: combine(&e.images, &weights),
                         render_ms: e.render_ms,
                         stats: mn.stats,
+                        needed: mhi_render::needed_share(
+                            &mhi,
+                            &tf.camera,
+                            &weights,
+                            a.prune().budget,
+                        )?,
                     });
                 }
                 out.push(o);
@@ -212,6 +218,7 @@ pub(super) fn render_soft(
         pruned.image,
         pruned_ms,
         Some(ExactCheck {
+            needed: mhi_render::needed_share(mhi, &tf.camera, &exact.weights, prune.budget)?,
             image: exact.image,
             render_ms: exact_ms,
             stats: pruned.stats,

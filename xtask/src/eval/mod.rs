@@ -83,6 +83,9 @@ struct ExactCheck {
     render_ms: f64,
     /// What the pruned render left out.
     stats: mhi_render::RenderStats,
+    /// The least share of samples any render within the budget composites
+    /// ([`mhi_render::needed_share`]).
+    needed: f32,
 }
 
 #[derive(Serialize)]

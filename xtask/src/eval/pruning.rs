@@ -24,6 +24,10 @@ pub(super) struct PruneMeasure {
     normals_pruned: usize,
     /// Share of the (tile, layer) pairs the pruned render composited.
     composited: f32,
+    /// Share of the (pixel, layer) samples it composited, and the least share any render
+    /// within the budget must.
+    samples: f32,
+    needed: f32,
     bound: f32,
 }
 
@@ -64,6 +68,8 @@ impl PruneMeasure {
             layers_pruned: e.stats.layers_pruned,
             normals_pruned: e.stats.normals_pruned,
             composited: e.stats.composited,
+            samples: e.stats.samples,
+            needed: e.needed,
             bound: e.stats.bound,
         })
     }
@@ -94,6 +100,10 @@ pub(super) struct PruneRow {
     pub(super) normals_pruned: f64,
     /// Mean share of the (tile, layer) pairs composited.
     pub(super) composited: f64,
+    /// Mean share of the samples composited, and the least mean share any render within the
+    /// budget must composite.
+    pub(super) samples: f64,
+    pub(super) needed: f64,
 }
 
 pub(super) fn prune_rows(ms_: &[PruneMeasure], boot: &Bootstrap) -> Vec<PruneRow> {
@@ -138,6 +148,8 @@ pub(super) fn prune_rows(ms_: &[PruneMeasure], boot: &Bootstrap) -> Vec<PruneRow
                 layers_pruned: mean(&|m| m.layers_pruned as f64),
                 normals_pruned: mean(&|m| m.normals_pruned as f64),
                 composited: mean(&|m| f64::from(m.composited)),
+                samples: mean(&|m| f64::from(m.samples)),
+                needed: mean(&|m| f64::from(m.needed)),
                 method,
                 normals,
                 planes,
@@ -160,14 +172,14 @@ pub(super) fn prune_markdown(rows: &[PruneRow], a: &EvalArgs) -> String {
     }
     let _ = writeln!(
         s,
-        "Every MHI below was rendered twice per view, exactly and within the error budget of {:.2} 8-bit level(s) per pixel (the default; `--exact` turns it off). |Δ| compares the two renders (not the ground truth); ΔPSNR is the change of covered PSNR against the ground truth (mean, 95 % interval); time is the render (and Soft blend) alone; layers and normals are those left out of the whole view, \"composited\" the share of (tile of 32 x 8 pixels, layer) pairs the pruned render still composited (it skips layers tile by tile where they are faint or hidden). The report's other tables score the pruned renders.\n",
+        "Every MHI below was rendered twice per view, exactly and within the error budget of {:.2} 8-bit level(s) per pixel (the default; `--exact` turns it off). |Δ| compares the two renders (not the ground truth); ΔPSNR is the change of covered PSNR against the ground truth (mean, 95 % interval); time is the render (and Soft blend) alone; layers and normals are those left out of the whole view, \"composited\" the share of (tile of 32 x 8 pixels, layer) pairs the pruned render still composited (it skips layers tile by tile where they are faint or hidden), \"samples\" the share of (pixel, layer) samples it composited (the transmittance stop skips more within a tile) and \"least possible\" the share an ideal plan that knew every pixel's exact contributions would still have to composite within the same budget (`mhi_render::needed_share`): its inverse is the most any leaving-out could speed the view up. The report's other tables score the pruned renders.\n",
         a.budget
     );
-    s += "| method | views | max \\|Δ\\| | mean \\|Δ\\| | bound | pixels over bound | ΔPSNR dB | exact ms | pruned ms | speed-up | layers left out | normals left out | composited |\n|---|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|\n";
+    s += "| method | views | max \\|Δ\\| | mean \\|Δ\\| | bound | pixels over bound | ΔPSNR dB | exact ms | pruned ms | speed-up | layers left out | normals left out | composited | samples | least possible |\n|---|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     for r in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.5} | {:.6} | {:.5} | {} | {} | {:.1} | {:.1} | {:.2}x | {:.1} of {} | {:.2} of {} | {:.0} % |",
+            "| {} | {} | {:.5} | {:.6} | {:.5} | {} | {} | {:.1} | {:.1} | {:.2}x | {:.1} of {} | {:.2} of {} | {:.0} % | {:.0} % | {:.0} % (≤ {:.2}x) |",
             config_label(&r.method, r.normals, r.planes),
             r.views,
             r.max_abs,
@@ -184,7 +196,10 @@ pub(super) fn prune_markdown(rows: &[PruneRow], a: &EvalArgs) -> String {
             r.layers,
             r.normals_pruned,
             r.normals,
-            100.0 * r.composited
+            100.0 * r.composited,
+            100.0 * r.samples,
+            100.0 * r.needed,
+            1.0 / r.needed.max(1e-9)
         );
     }
     s.push('\n');

@@ -754,7 +754,6 @@ pub fn needed_share(mhi: &Mhi, target: &Camera, weights: &[f32], budget: f32) ->
         mhi.reference().width as usize,
         mhi.reference().height as usize,
     );
-    let zero = vec![[0.0_f32; 4]; rw * rh];
     let (total, needed) = (0..th)
         .into_par_iter()
         .map(|y| {
@@ -777,7 +776,8 @@ pub fn needed_share(mhi: &Mhi, target: &Camera, weights: &[f32], budget: f32) ->
                         } else if hw > W_EPS {
                             let sx = (h[0] * u + h[1] * v + h[2]) / hw - 0.5;
                             let sy = (h[3] * u + h[4] * v + h[5]) / hw - 0.5;
-                            sample(mhi.alpha_layer(i, j), &zero, rw, rh, sx, sy).0
+                            let alpha = mhi.alpha_layer(i, j);
+                            sample_zero_padded(|k| [alpha[k]], rw, rh, sx, sy)[0]
                         } else {
                             0.0
                         };
@@ -819,34 +819,51 @@ fn sample(
     sx: f32,
     sy: f32,
 ) -> (f32, [f32; 3]) {
+    let [a, r, g, b] = sample_zero_padded(
+        |i| [alpha[i], color[i][0], color[i][1], color[i][2]],
+        wd,
+        h,
+        sx,
+        sy,
+    );
+    (a, [r, g, b])
+}
+
+/// Bilinear sample at `(sx, sy)` of the `wd × h` image whose texel `i` (row-major) is
+/// `value(i)`, zero outside it (zero padding).
+#[inline(always)]
+fn sample_zero_padded<const C: usize>(
+    value: impl Fn(usize) -> [f32; C],
+    wd: usize,
+    h: usize,
+    sx: f32,
+    sy: f32,
+) -> [f32; C] {
     if !(sx > -1.0 && sy > -1.0 && sx < wd as f32 && sy < h as f32) {
-        return (0.0, [0.0; 3]);
+        return [0.0; C];
     }
     // floor() without a libm call (the baseline x86-64 target has no SSE4.1 rounding): the
     // shifted value is positive, so truncation is the floor.
     let x0 = (sx + 1.0) as isize - 1;
     let y0 = (sy + 1.0) as isize - 1;
     let w = bilinear::weights(sx - x0 as f32, sy - y0 as f32);
-    let inside =
-        |xx: isize, yy: isize| xx >= 0 && yy >= 0 && (xx as usize) < wd && (yy as usize) < h;
     // Taps outside the image read zero (zero padding).
-    let tap = |xx: isize, yy: isize| -> ([f32; 1], [f32; 4]) {
-        if inside(xx, yy) {
-            let i = yy as usize * wd + xx as usize;
-            ([alpha[i]], color[i])
+    let tap = |xx: isize, yy: isize| {
+        if xx >= 0 && yy >= 0 && (xx as usize) < wd && (yy as usize) < h {
+            value(yy as usize * wd + xx as usize)
         } else {
-            ([0.0], [0.0; 4])
+            [0.0; C]
         }
     };
-    let t = [
-        tap(x0, y0),
-        tap(x0 + 1, y0),
-        tap(x0, y0 + 1),
-        tap(x0 + 1, y0 + 1),
-    ];
-    let [a] = bilinear::mix(&w, [t[0].0, t[1].0, t[2].0, t[3].0]);
-    let c = bilinear::mix(&w, [t[0].1, t[1].1, t[2].1, t[3].1]);
-    (a, [c[0], c[1], c[2]])
+    bilinear::mix(
+        &w,
+        [
+            tap(x0, y0),
+            tap(x0 + 1, y0),
+            tap(x0, y0 + 1),
+            tap(x0 + 1, y0 + 1),
+        ],
+    )
 }
 
 /// `Σ_i w_i · mni_i` per pixel, with `weights` `N × H × W` (normal-major).

@@ -259,13 +259,6 @@ fn normalised_weights(given: &[f32], n: usize, px: usize) -> Result<Vec<f32>> {
     Ok(out)
 }
 
-/// Reference colour as RGBA texels (A unused) for aligned bilinear fetches.
-fn texels(img: &Rgb32FImage) -> Vec<[f32; 4]> {
-    img.pixels()
-        .map(|p| [p.0[0], p.0[1], p.0[2], 0.0])
-        .collect()
-}
-
 /// The normals a render keeps (`true`) and the largest blend weight dropped at any pixel:
 /// lightest first (by largest weight), normals are dropped while the summed weight they leave
 /// out stays within `share` at every pixel; at least one normal is kept.
@@ -546,13 +539,13 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
         mhi.reference().width as usize,
         mhi.reference().height as usize,
     );
-    let shared = match mhi.color() {
-        LayerColor::Shared(img) => Some(texels(img)),
-        LayerColor::PerLayer(_) => None,
-    };
-    let per_layer: Vec<Vec<[f32; 4]>> = match mhi.color() {
-        LayerColor::Shared(_) => Vec::new(),
-        LayerColor::PerLayer(v) => v.iter().map(texels).collect(),
+    // Colour is read straight from the images' RGB rows (three floats per texel): copying
+    // 160 per-layer images into padded texels cost more than the unaligned reads.
+    let color_of = |k: usize| -> &[f32] {
+        match mhi.color() {
+            LayerColor::Shared(img) => img.as_raw(),
+            LayerColor::PerLayer(v) => v[k].as_raw(),
+        }
     };
     // A tile that leaves out less layer mass than its share passes the rest on to its
     // transmittance stop: its pixels stop at `eps + share − mass`, so every pixel's bound is
@@ -604,17 +597,22 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
                     for &j in &tile.layers[i] {
                         let (h, far) = (hs[i * d + j].unwrap_or([0.0; 9]), j == 0);
                         let alpha = mhi.alpha_layer(i, j);
-                        let color: &[[f32; 4]] = match &shared {
-                            Some(s) => s,
-                            None => &per_layer[i * d + j],
-                        };
+                        let color = color_of(i * d + j);
                         // Pass 1 (vectorisable): sample positions of the tile's row, split
                         // into the top-left texel index and the bilinear fractions. Invalid
                         // samples (w ≤ ε) are sent outside the image, where they read zero.
                         let (bx, by, bw) = (h[1] * v + h[2], h[4] * v + h[5], h[7] * v + h[8]);
                         let (wmax, hmax) = ((rw - 1) as f32, (rh - 1) as f32);
-                        for x in x0..x1 {
-                            let u = x as f32 + 0.5;
+                        // Zipped slices, not indices: bounds checks in the loop would keep
+                        // it from being vectorised.
+                        let pass1 = sxs[x0..x1]
+                            .iter_mut()
+                            .zip(&mut sys[x0..x1])
+                            .zip(&mut fxs[x0..x1])
+                            .zip(&mut fys[x0..x1])
+                            .zip(&mut idx[x0..x1]);
+                        for (k, ((((sx_out, sy_out), fx), fy), ix)) in pass1.enumerate() {
+                            let u = (x0 + k) as i32 as f32 + 0.5;
                             let w = h[6] * u + bw;
                             let ok = w > W_EPS;
                             let inv = 1.0 / if ok { w } else { 1.0 };
@@ -628,16 +626,15 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
                             } else {
                                 -2.0
                             };
-                            sxs[x] = sx;
-                            sys[x] = sy;
+                            *sx_out = sx;
+                            *sy_out = sy;
                             // All four taps inside: 0 ≤ sx < w − 1 and 0 ≤ sy < h − 1.
                             let inside = sx >= 0.0 && sy >= 0.0 && sx < wmax && sy < hmax;
-                            let xi = if inside { sx as u32 } else { 0 };
-                            let yi = if inside { sy as u32 } else { 0 };
-                            fxs[x] = sx - xi as f32;
-                            fys[x] = sy - yi as f32;
-                            idx[x] = if inside {
-                                yi * rw as u32 + xi
+                            let (xf, yf) = (floor_small(sx, inside), floor_small(sy, inside));
+                            *fx = sx - xf;
+                            *fy = sy - yf;
+                            *ix = if inside {
+                                small_to_u32(yf) * rw as u32 + small_to_u32(xf)
                             } else {
                                 u32::MAX
                             };
@@ -657,13 +654,20 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
                                 let i = idx[x] as usize;
                                 let w = bilinear::weights(fxs[x], fys[x]);
                                 let (a_top, a_bot) = (&alpha[i..i + 2], &alpha[i + rw..i + rw + 2]);
-                                let (c_top, c_bot) = (&color[i..i + 2], &color[i + rw..i + rw + 2]);
+                                let (c_top, c_bot) = (
+                                    &color[3 * i..3 * i + 6],
+                                    &color[3 * (i + rw)..3 * (i + rw) + 6],
+                                );
                                 let [a] = bilinear::mix(
                                     &w,
                                     [[a_top[0]], [a_top[1]], [a_bot[0]], [a_bot[1]]],
                                 );
-                                let c = bilinear::mix(&w, [c_top[0], c_top[1], c_bot[0], c_bot[1]]);
-                                (a, [c[0], c[1], c[2]])
+                                let rgb = |t: &[f32]| [t[0], t[1], t[2]];
+                                let c = bilinear::mix(
+                                    &w,
+                                    [rgb(c_top), rgb(&c_top[3..]), rgb(c_bot), rgb(&c_bot[3..])],
+                                );
+                                (a, c)
                             } else {
                                 // Border or outside: the general sampler (zero padding).
                                 sample(alpha, color, rw, rh, sxs[x], sys[x])
@@ -811,22 +815,35 @@ pub fn needed_share(mhi: &Mhi, target: &Camera, weights: &[f32], budget: f32) ->
 /// integers), zero outside the image (PyTorch's `grid_sample`, `align_corners=False`,
 /// `padding_mode="zeros"`).
 #[inline(always)]
-fn sample(
-    alpha: &[f32],
-    color: &[[f32; 4]],
-    wd: usize,
-    h: usize,
-    sx: f32,
-    sy: f32,
-) -> (f32, [f32; 3]) {
+fn sample(alpha: &[f32], color: &[f32], wd: usize, h: usize, sx: f32, sy: f32) -> (f32, [f32; 3]) {
     let [a, r, g, b] = sample_zero_padded(
-        |i| [alpha[i], color[i][0], color[i][1], color[i][2]],
+        |i| [alpha[i], color[3 * i], color[3 * i + 1], color[3 * i + 2]],
         wd,
         h,
         sx,
         sy,
     );
     (a, [r, g, b])
+}
+
+/// 2²³: adding it to a float in [0, 2²³) rounds it to an integer (the spacing of floats there
+/// is 1), and the integer is then the low bits of the sum.
+const ROUNDER: f32 = 8_388_608.0;
+
+/// `⌊s⌋` for `s` in `[0, 2²²)` when `ok` (0 otherwise), without a conversion to an integer: the
+/// saturating `as` casts of Rust have no four-wide form on the baseline x86-64 target, and kept
+/// the renderer's position pass from being vectorised.
+#[inline(always)]
+fn floor_small(s: f32, ok: bool) -> f32 {
+    let s = if ok { s } else { 0.0 };
+    let r = (s + ROUNDER) - ROUNDER; // s rounded to the nearest integer
+    if r > s { r - 1.0 } else { r }
+}
+
+/// The integer `f` (a whole float in `[0, 2²³)`) as `u32`, by its bits.
+#[inline(always)]
+fn small_to_u32(f: f32) -> u32 {
+    (f + ROUNDER).to_bits() - ROUNDER.to_bits()
 }
 
 /// Bilinear sample at `(sx, sy)` of the `wd × h` image whose texel `i` (row-major) is
@@ -880,4 +897,27 @@ pub fn combine(mni: &[Rgb32FImage], weights: &[f32]) -> Rgb32FImage {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{floor_small, small_to_u32};
+
+    #[test]
+    fn floor_small_is_the_floor_of_every_position_a_render_samples() {
+        // Whole numbers, the floats just below and above them, halves (where rounding to the
+        // nearest ties), and a sweep of the range of positions inside a large image.
+        let mut values = vec![0.0_f32, 0.5, 1.5, 2.5, 4095.5, 4_194_303.0];
+        for k in 0..5000_u32 {
+            let f = k as f32;
+            values.extend([f, f + 0.5, f.next_up(), (f + 1.0).next_down()]);
+        }
+        values.extend((0..100_000).map(|k| k as f32 * 0.0417));
+        for s in values {
+            let f = floor_small(s, true);
+            assert_eq!(f, s.floor(), "floor of {s}");
+            assert_eq!(small_to_u32(f), s.floor() as u32, "index of {s}");
+        }
+        assert_eq!(floor_small(123.4, false), 0.0);
+    }
 }

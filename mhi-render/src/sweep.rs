@@ -2,9 +2,7 @@
 //! training-free "sweep" MHI built from its photo-consistency.
 
 use image::Rgb32FImage;
-use mhi_geom::{
-    Camera, NormalSet, apply_homography, pixel_center, plane_homography_from_reference,
-};
+use mhi_geom::{Camera, NormalSet, plane_homography_from_reference};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -72,34 +70,63 @@ pub fn plane_sweep_volume(
     let (sw, sh) = (source.width as usize, source.height as usize);
     let px = w * h;
     let src = source_image.as_raw();
-    let per_plane: Vec<(Vec<f32>, Vec<f32>)> = planes
-        .par_iter()
-        .map(|plane| {
-            let mut rgb = vec![0.0_f32; px * 3];
-            let mut valid = vec![0.0_f32; px];
+    // One allocation filled in place, plane by plane in parallel (allocating each plane and
+    // concatenating them cost as much as the sampling).
+    let mut rgb = vec![0.0_f32; planes.len() * px * 3];
+    let mut valid = vec![0.0_f32; planes.len() * px];
+    rgb.par_chunks_mut((px * 3).max(1))
+        .zip(valid.par_chunks_mut(px.max(1)))
+        .zip(planes.par_iter())
+        .for_each(|((rgb, valid), plane)| {
             let Ok(hm) = plane_homography_from_reference(
                 &reference.intrinsics,
                 &source.intrinsics,
                 &src_from_ref,
                 plane,
             ) else {
-                return (rgb, valid);
+                return;
             };
+            // p = H · (u, v, 1) in the order of glam's `DMat3 * DVec3` (x column, then y, then
+            // z), with the y and z columns summed once per row: the same f64 values as
+            // `apply_homography`, without a call per pixel.
+            let (xa, ya, za) = (hm.x_axis, hm.y_axis, hm.z_axis);
+            let (xmax, ymax) = (sw.saturating_sub(2), sh.saturating_sub(2));
+            let (sx_max, sy_max) = ((sw - 1) as f64, (sh - 1) as f64);
+            let (mut sxs, mut sys, mut oks) = (vec![0.0_f64; w], vec![0.0_f64; w], vec![false; w]);
             for y in 0..h {
-                for x in 0..w {
-                    let Some(p) =
-                        apply_homography(&hm, pixel_center(x as u32, y as u32), f64::from(W_EPS))
-                    else {
-                        continue;
-                    };
-                    let (sx, sy) = (p.x - 0.5, p.y - 0.5);
-                    if !(sx >= 0.0 && sy >= 0.0 && sx <= (sw - 1) as f64 && sy <= (sh - 1) as f64) {
+                let v = y as f64 + 0.5;
+                let yv = ya * v;
+                // Pass 1 (vectorisable): sample positions of the row and whether all four taps
+                // are inside the source (an infinite or NaN position fails the range test).
+                for (x, ((sx_out, sy_out), ok_out)) in
+                    sxs.iter_mut().zip(&mut sys).zip(&mut oks).enumerate()
+                {
+                    let u = x as i32 as f64 + 0.5;
+                    let p = (xa * u + yv) + za;
+                    let (sx, sy) = (p.x / p.z - 0.5, p.y / p.z - 0.5);
+                    *ok_out = p.z > f64::from(W_EPS)
+                        && sx >= 0.0
+                        && sy >= 0.0
+                        && sx <= sx_max
+                        && sy <= sy_max;
+                    (*sx_out, *sy_out) = (sx, sy);
+                }
+                // Pass 2: bilinear fetches.
+                let (rgb_row, valid_row) = (
+                    &mut rgb[y * w * 3..(y + 1) * w * 3],
+                    &mut valid[y * w..(y + 1) * w],
+                );
+                for ((((out, ok), &inside), &sx), &sy) in rgb_row
+                    .chunks_exact_mut(3)
+                    .zip(valid_row.iter_mut())
+                    .zip(&oks)
+                    .zip(&sxs)
+                    .zip(&sys)
+                {
+                    if !inside {
                         continue;
                     }
-                    let (x0, y0) = (
-                        (sx.floor() as usize).min(sw.saturating_sub(2)),
-                        (sy.floor() as usize).min(sh.saturating_sub(2)),
-                    );
+                    let (x0, y0) = (floor_index(sx).min(xmax), floor_index(sy).min(ymax));
                     let wts = bilinear::weights((sx - x0 as f64) as f32, (sy - y0 as f64) as f32);
                     let x1 = (x0 + 1).min(sw - 1);
                     let y1 = (y0 + 1).min(sh - 1);
@@ -108,19 +135,11 @@ pub fn plane_sweep_volume(
                         [src[i], src[i + 1], src[i + 2]]
                     };
                     let c = bilinear::mix(&wts, [at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1)]);
-                    rgb[(y * w + x) * 3..][..3].copy_from_slice(&c);
-                    valid[y * w + x] = 1.0;
+                    out.copy_from_slice(&c);
+                    *ok = 1.0;
                 }
             }
-            (rgb, valid)
-        })
-        .collect();
-    let mut rgb = Vec::with_capacity(planes.len() * px * 3);
-    let mut valid = Vec::with_capacity(planes.len() * px);
-    for (r, v) in per_plane {
-        rgb.extend(r);
-        valid.extend(v);
-    }
+        });
     Ok(PlaneSweepVolume {
         n: normals.len(),
         d: depths.len(),
@@ -180,41 +199,86 @@ impl Default for SweepConfig {
     }
 }
 
-/// Mean absolute difference box-filtered with radius `r` (integral image, clamped borders).
-fn box_filter(cost: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
-    let mut integral = vec![0.0_f64; (w + 1) * (h + 1)];
-    for y in 0..h {
-        let mut row = 0.0;
-        for x in 0..w {
-            row += f64::from(cost[y * w + x]);
-            integral[(y + 1) * (w + 1) + x + 1] = integral[y * (w + 1) + x + 1] + row;
-        }
+/// `⌊s⌋` of `0 ≤ s < 2⁵¹` as an index, without the libm call `f64::floor` makes on the baseline
+/// x86-64 target: adding 2⁵² rounds `s` to an integer (the spacing of doubles there is 1).
+#[inline(always)]
+fn floor_index(s: f64) -> usize {
+    const ROUNDER: f64 = 4_503_599_627_370_496.0; // 2⁵²
+    let r = (s + ROUNDER) - ROUNDER;
+    let f = if r > s { r - 1.0 } else { r };
+    ((f + ROUNDER).to_bits() - ROUNDER.to_bits()) as usize
+}
+
+/// The mean of each channel of an interleaved `C`-channel image over the `(2r + 1)²` window
+/// around each pixel, clamped at the borders (the window shrinks; it is not padded).
+///
+/// Separable running sums in f64: a column sum per pixel of the row, moved down a row at a
+/// time, then a sum along the row. The inputs are f32, so the sums of a window are exact in f64
+/// for colours (and the same as through an integral image) whatever the order.
+fn box_mean<const C: usize>(src: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
+    let mut out = vec![0.0_f32; src.len()];
+    if w == 0 || h == 0 {
+        return out;
     }
-    let mut out = vec![0.0; w * h];
+    let row = |y: usize| &src[y * w * C..(y + 1) * w * C];
+    let mut col = vec![0.0_f64; w * C];
+    for y in 0..(r + 1).min(h) {
+        col.iter_mut()
+            .zip(row(y))
+            .for_each(|(c, v)| *c += f64::from(*v));
+    }
     for y in 0..h {
-        let (y0, y1) = (y.saturating_sub(r), (y + r + 1).min(h));
+        if y > 0 {
+            if y + r < h {
+                col.iter_mut()
+                    .zip(row(y + r))
+                    .for_each(|(c, v)| *c += f64::from(*v));
+            }
+            if y > r {
+                col.iter_mut()
+                    .zip(row(y - r - 1))
+                    .for_each(|(c, v)| *c -= f64::from(*v));
+            }
+        }
+        let rows = ((y + r + 1).min(h) - y.saturating_sub(r)) as f64;
+        let dst = &mut out[y * w * C..(y + 1) * w * C];
+        let mut sum = [0.0_f64; C];
+        for x in 0..(r + 1).min(w) {
+            for k in 0..C {
+                sum[k] += col[x * C + k];
+            }
+        }
         for x in 0..w {
-            let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
-            let s = integral[y1 * (w + 1) + x1]
-                - integral[y0 * (w + 1) + x1]
-                - integral[y1 * (w + 1) + x0]
-                + integral[y0 * (w + 1) + x0];
-            out[y * w + x] = (s / ((y1 - y0) * (x1 - x0)) as f64) as f32;
+            if x > 0 {
+                if x + r < w {
+                    for k in 0..C {
+                        sum[k] += col[(x + r) * C + k];
+                    }
+                }
+                if x > r {
+                    for k in 0..C {
+                        sum[k] -= col[(x - r - 1) * C + k];
+                    }
+                }
+            }
+            let n = rows * ((x + r + 1).min(w) - x.saturating_sub(r)) as f64;
+            for k in 0..C {
+                dst[x * C + k] = (sum[k] / n) as f32;
+            }
         }
     }
     out
 }
 
+/// Mean absolute difference box-filtered with radius `r` (clamped borders).
+fn box_filter(cost: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
+    box_mean::<1>(cost, w, h, r)
+}
+
 /// Each channel of an interleaved RGB image minus its box-filtered local mean.
 fn zero_mean(rgb: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
-    let mut out = vec![0.0_f32; rgb.len()];
-    for k in 0..3 {
-        let ch: Vec<f32> = rgb.iter().skip(k).step_by(3).copied().collect();
-        let mean = box_filter(&ch, w, h, r);
-        for p in 0..w * h {
-            out[3 * p + k] = ch[p] - mean[p];
-        }
-    }
+    let mut out = box_mean::<3>(rgb, w, h, r);
+    out.iter_mut().zip(rgb).for_each(|(m, v)| *m = v - *m);
     out
 }
 
@@ -223,17 +287,20 @@ fn zero_mean(rgb: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
 /// left, the farthest everything that remains. Compositing these alphas gives back the
 /// probabilities as the layers' visible weights.
 pub fn alphas_from_probabilities(prob: &[f32], d: usize, px: usize, alpha: &mut [f32]) {
-    for p in 0..px {
-        let mut remaining = 1.0_f32;
-        for j in (0..d).rev() {
-            let pj = prob[j * px + p];
-            let a = if j == 0 || remaining <= 1e-6 {
+    // A plane at a time, near to far, every pixel's remaining share carried along.
+    let mut remaining = vec![1.0_f32; px];
+    for j in (0..d).rev() {
+        let (pj, aj) = (
+            &prob[j * px..(j + 1) * px],
+            &mut alpha[j * px..(j + 1) * px],
+        );
+        for ((a, pj), rem) in aj.iter_mut().zip(pj).zip(&mut remaining) {
+            *a = if j == 0 || *rem <= 1e-6 {
                 1.0
             } else {
-                (pj / remaining).clamp(0.0, 1.0)
+                (pj / *rem).clamp(0.0, 1.0)
             };
-            alpha[j * px + p] = a;
-            remaining = (remaining - pj).max(0.0);
+            *rem = (*rem - pj).max(0.0);
         }
     }
 }
@@ -314,50 +381,54 @@ pub fn sweep_alphas(
     let px = w * h;
     let (n, d) = (psv.n, psv.d);
     let refp = reference_image.as_raw();
-    let mut alpha = vec![0.0_f32; n * d * px];
-    alpha
-        .par_chunks_mut(d * px)
+    let r = cfg.window_radius as usize;
+    // Reference colour with its local mean removed (zero-mean SAD): robust to the exposure and
+    // white-balance changes between real photos.
+    let ref_zm = zero_mean(refp, w, h, r);
+    // The aggregated cost of every plane, planes in parallel.
+    let mut costs = vec![0.0_f32; n * d * px];
+    costs
+        .par_chunks_mut(px.max(1))
         .enumerate()
-        .for_each(|(i, out)| {
-            let r = cfg.window_radius as usize;
-            // Reference luminance-free colour with its local mean removed (zero-mean SAD): robust to
-            // the exposure and white-balance changes between real photos.
-            let ref_zm = zero_mean(refp, w, h, r);
-            let costs: Vec<Vec<f32>> = (0..d)
-                .map(|j| {
-                    let rgb = psv.plane_rgb(i, j);
-                    let valid = psv.plane_valid(i, j);
-                    let src_zm = zero_mean(rgb, w, h, r);
-                    let raw: Vec<f32> = (0..px)
-                        .map(|p| {
-                            if valid[p] > 0.0 {
-                                (0..3)
-                                    .map(|k| (src_zm[3 * p + k] - ref_zm[3 * p + k]).abs())
-                                    .sum::<f32>()
-                                    / 3.0
-                            } else {
-                                cfg.invalid_cost
-                            }
-                        })
-                        .collect();
-                    box_filter(&raw, w, h, r)
+        .for_each(|(k, out)| {
+            let (i, j) = (k / d, k % d);
+            let rgb = psv.plane_rgb(i, j);
+            let valid = psv.plane_valid(i, j);
+            let src_zm = zero_mean(rgb, w, h, r);
+            let raw: Vec<f32> = (0..px)
+                .map(|p| {
+                    if valid[p] > 0.0 {
+                        (0..3)
+                            .map(|k| (src_zm[3 * p + k] - ref_zm[3 * p + k]).abs())
+                            .sum::<f32>()
+                            / 3.0
+                    } else {
+                        cfg.invalid_cost
+                    }
                 })
                 .collect();
-            // Softmax over depths of −cost / τ (max subtracted).
-            let mut prob = vec![0.0_f32; d * px];
-            for p in 0..px {
-                let m = (0..d)
-                    .map(|j| -costs[j][p] / cfg.temperature)
-                    .fold(f32::NEG_INFINITY, f32::max);
-                let mut s = 0.0;
-                for j in 0..d {
-                    let e = (-costs[j][p] / cfg.temperature - m).exp();
-                    prob[j * px + p] = e;
-                    s += e;
+            out.copy_from_slice(&box_filter(&raw, w, h, r));
+        });
+    let mut alpha = vec![0.0_f32; n * d * px];
+    alpha
+        .par_chunks_mut((d * px).max(1))
+        .zip(costs.par_chunks((d * px).max(1)))
+        .for_each(|(out, costs)| {
+            // Softmax over depths of −cost / τ (max subtracted), a plane at a time.
+            let mut prob: Vec<f32> = costs.iter().map(|c| -c / cfg.temperature).collect();
+            let mut m = vec![f32::NEG_INFINITY; px];
+            for z in prob.chunks_exact(px.max(1)) {
+                m.iter_mut().zip(z).for_each(|(m, z)| *m = m.max(*z));
+            }
+            let mut sum = vec![0.0_f32; px];
+            for z in prob.chunks_exact_mut(px.max(1)) {
+                for ((z, m), s) in z.iter_mut().zip(&m).zip(&mut sum) {
+                    *z = (*z - m).exp();
+                    *s += *z;
                 }
-                for j in 0..d {
-                    prob[j * px + p] /= s;
-                }
+            }
+            for z in prob.chunks_exact_mut(px.max(1)) {
+                z.iter_mut().zip(&sum).for_each(|(z, s)| *z /= s);
             }
             alphas_from_probabilities(&prob, d, px, out);
         });
@@ -422,6 +493,53 @@ mod tests {
             e.contains("farthest plane depth") && !e.contains("zero baseline"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn box_mean_is_the_mean_over_the_clamped_window() {
+        // Brute force over every window, for radii below, at and beyond the image's sides.
+        for (w, h, r) in [
+            (7, 5, 0),
+            (7, 5, 1),
+            (7, 5, 2),
+            (9, 4, 3),
+            (3, 8, 5),
+            (1, 1, 2),
+        ] {
+            let img: Vec<f32> = (0..w * h * 3)
+                .map(|k| ((k * 7919) % 101) as f32 / 101.0)
+                .collect();
+            let mean = box_mean::<3>(&img, w, h, r);
+            for y in 0..h {
+                for x in 0..w {
+                    for k in 0..3 {
+                        let (mut s, mut n) = (0.0_f64, 0);
+                        for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
+                            for xx in x.saturating_sub(r)..(x + r + 1).min(w) {
+                                s += f64::from(img[(yy * w + xx) * 3 + k]);
+                                n += 1;
+                            }
+                        }
+                        let want = (s / f64::from(n)) as f32;
+                        let got = mean[(y * w + x) * 3 + k];
+                        assert!(
+                            (got - want).abs() <= 1e-6,
+                            "{w}x{h} r {r} at ({x}, {y}): {got} vs {want}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn floor_index_is_the_floor() {
+        for k in 0..20_000_u32 {
+            let f = f64::from(k);
+            for s in [f, f + 0.25, f + 0.5, f.next_up(), (f + 1.0).next_down()] {
+                assert_eq!(floor_index(s), s.floor() as usize, "{s}");
+            }
+        }
     }
 
     #[test]

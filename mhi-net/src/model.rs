@@ -138,10 +138,20 @@ impl Model {
 
     /// Stage 1: alphas `N · D · H · W` (normal-major, far first) from its input.
     pub fn alphas(&self, input: Stage1Input) -> crate::Result<Vec<f32>> {
-        let v: Vec<f32> = alphas_of(&self.stage1, input)
-            .into_data()
-            .try_to_vec()
-            .map_err(|e| Error::NonFinite(format!("stage-1 output: {e:?}")))?;
+        let data = |t: burn::tensor::TensorData| -> crate::Result<Vec<f32>> {
+            t.try_to_vec()
+                .map_err(|e| Error::NonFinite(format!("stage-1 output: {e:?}")))
+        };
+        let v: Vec<f32> = match &input.prior {
+            // With the sweep prior, the networks' coarse residual is upsampled and applied to
+            // the prior in one pass on the CPU (the same alphas as `alphas_of` to rounding).
+            Some(prior) => {
+                let [_, _, _, hs, ws] = input.volume.dims();
+                let small = data(self.stage1.forward_full(input.volume).into_data())?;
+                prior.apply_upsampled(&small, (hs, ws))
+            }
+            None => data(alphas_of(&self.stage1, input).into_data())?,
+        };
         if let Some(k) = v.iter().position(|a| !a.is_finite()) {
             return Err(Error::NonFinite(format!(
                 "stage 1 produced {} at alpha {k}",

@@ -296,7 +296,9 @@ impl Stage1 {
         interpolate(out.reshape([n, d, hs, ws]), opts).reshape([n, 1, d, h, w])
     }
 
-    fn forward_full(&self, volume: Tensor<5>) -> Tensor<5> {
+    /// The networks on the volume as it is (no interpolation): `[N, C, D, h, w]` →
+    /// `[N, 1, D, h, w]`.
+    pub(crate) fn forward_full(&self, volume: Tensor<5>) -> Tensor<5> {
         if self.nets.len() == 1 {
             return self.nets[0].forward(volume);
         }

@@ -40,22 +40,81 @@ pub const PRIOR_EPS: f32 = 1e-3;
 /// `[0, 1]`).
 pub const LOGIT_INPUT_SCALE: f32 = 5.0;
 
-/// The sweep prior of a pair as tensors on the stage-1 grid.
+/// The sweep prior of a pair on the full stage-1 grid (`N·D` planes of `H × W`, normal-major,
+/// far first), kept on the CPU: training makes tensors of it, inference applies it in one pass
+/// ([`Self::apply_upsampled`]).
 #[derive(Debug, Clone)]
 pub struct SweepPrior {
-    /// `logit(clamp(α_sweep))`, `[N·D, 1, H, W]`.
-    pub logit: Tensor<4>,
-    /// `α_sweep − clamp(α_sweep)` (a constant), `[N·D, 1, H, W]`.
-    pub correction: Tensor<4>,
+    /// `logit(clamp(α_sweep))`.
+    pub logit: Vec<f32>,
+    /// `α_sweep − clamp(α_sweep)` (a constant).
+    pub correction: Vec<f32>,
+    /// `(N·D, H, W)`.
+    pub shape: (usize, usize, usize),
 }
 
 impl SweepPrior {
-    /// Alphas `σ(logit + residual) + correction`, clamped to `[0, 1]`.
+    /// Alphas `σ(logit + residual) + correction`, clamped to `[0, 1]` (differentiable in the
+    /// residual).
     ///
     /// # Shapes
     /// `residual [N·D, 1, H, W]` → `[N·D, 1, H, W]`
     pub fn apply(&self, residual: Tensor<4>) -> Tensor<4> {
-        (sigmoid(self.logit.clone() + residual) + self.correction.clone()).clamp(0.0, 1.0)
+        let (planes, h, w) = self.shape;
+        let device = residual.device();
+        let t = |v: &[f32]| {
+            Tensor::<4>::from_data(TensorData::new(v.to_vec(), [planes, 1, h, w]), &device)
+        };
+        (sigmoid(t(&self.logit) + residual) + t(&self.correction)).clamp(0.0, 1.0)
+    }
+
+    /// What [`Self::apply`] gives for the residual `small` (`N·D` planes of `hs × ws`) brought
+    /// to the full grid by burn's bilinear `interpolate` (corners aligned, as
+    /// [`crate::Stage1::forward_blocks`] does), in one pass over the alphas instead of five
+    /// full-size tensor operations: the interpolation is the same sums in the same order; the
+    /// sigmoid is `1 / (1 + e^−z)`.
+    ///
+    /// # Panics
+    /// If `small` does not hold `N·D · hs · ws` values or a side is zero.
+    pub fn apply_upsampled(&self, small: &[f32], (hs, ws): (usize, usize)) -> Vec<f32> {
+        use rayon::prelude::*;
+        let (planes, h, w) = self.shape;
+        assert!(hs > 0 && ws > 0 && small.len() == planes * hs * ws);
+        // Per output row and column: the two taps and the weight of the second, as burn's
+        // `interpolate_bilinear_impl` computes them (in f64, the weight then in f32).
+        let axis = |n_in: usize, n_out: usize| -> Vec<(usize, usize, f32)> {
+            let ratio = (n_in as f64 - 1.0) / (n_out.max(1) - 1).max(1) as f64;
+            (0..n_out)
+                .map(|o| {
+                    let c = o as f64 * ratio;
+                    let lo = c.floor().max(0.0) as usize;
+                    (lo, (lo + 1).min(n_in - 1), (c - lo as f64).max(0.0) as f32)
+                })
+                .collect()
+        };
+        let (rows, cols) = (axis(hs, h), axis(ws, w));
+        let mut out = vec![0.0_f32; planes * h * w];
+        out.par_chunks_mut(w.max(1))
+            .enumerate()
+            .for_each(|(k, dst)| {
+                let (plane, y) = (k / h, k % h);
+                let src = &small[plane * hs * ws..(plane + 1) * hs * ws];
+                let (y0, y1, wy) = rows[y];
+                let (top, bottom) = (&src[y0 * ws..(y0 + 1) * ws], &src[y1 * ws..(y1 + 1) * ws]);
+                let at = k * w;
+                let (logit, correction) = (&self.logit[at..at + w], &self.correction[at..at + w]);
+                for (((o, &(x0, x1, wx)), l), c) in
+                    dst.iter_mut().zip(&cols).zip(logit).zip(correction)
+                {
+                    let r = top[x0] * (1.0 - wx) * (1.0 - wy)
+                        + top[x1] * wx * (1.0 - wy)
+                        + bottom[x0] * (1.0 - wx) * wy
+                        + bottom[x1] * wx * wy;
+                    let a = 1.0 / (1.0 + (-(l + r)).exp());
+                    *o = (a + c).clamp(0.0, 1.0);
+                }
+            });
+        out
     }
 }
 
@@ -128,22 +187,23 @@ pub fn stage1_input(
         }
         None => None,
     };
+    use rayon::prelude::*;
     let logits: Option<Vec<f32>> = sweep
         .as_ref()
-        .map(|a| a.iter().map(|&v| logit(v)).collect());
+        .map(|a| a.par_iter().map(|&v| logit(v)).collect());
     let channels = if sweep.is_some() { 7 } else { 6 };
     let volume = fill_volume(&psv, &reference.image, logits.as_deref(), block);
     let (hb, wb) = (h / block, w / block);
     let volume = Tensor::from_data(TensorData::new(volume, [n, channels, d, hb, wb]), device);
     let prior = sweep.zip(logits).map(|(alpha, logit)| {
         let correction: Vec<f32> = alpha
-            .iter()
+            .par_iter()
             .map(|&a| a - a.clamp(PRIOR_EPS, 1.0 - PRIOR_EPS))
             .collect();
-        let t = |v: Vec<f32>| Tensor::from_data(TensorData::new(v, [n * d, 1, h, w]), device);
         SweepPrior {
-            logit: t(logit),
-            correction: t(correction),
+            logit,
+            correction,
+            shape: (n * d, h, w),
         }
     });
     Ok(Stage1Input {
@@ -171,6 +231,11 @@ fn fill_volume(
     let pxb = wb * hb;
     let channels = if logits.is_some() { 7 } else { 6 };
     let refp = reference.as_raw();
+    // The reference's channels are the same on every plane: pooled once.
+    let mut reference_pooled = vec![0.0_f32; 3 * pxb];
+    for (c, dst) in reference_pooled.chunks_exact_mut(pxb.max(1)).enumerate() {
+        pool(dst, (w, h), block, |p| refp[3 * p + c]);
+    }
     let mut data = vec![0.0_f32; n * channels * d * pxb];
     // One chunk per (normal, channel): `d` planes of `pxb` values.
     data.par_chunks_mut(d * pxb)
@@ -179,7 +244,7 @@ fn fill_volume(
             let (i, c) = (k / channels, k % channels);
             for (j, dst) in chunk.chunks_exact_mut(pxb).enumerate() {
                 match c {
-                    0..3 => pool(dst, (w, h), block, |p| refp[3 * p + c]),
+                    0..3 => dst.copy_from_slice(&reference_pooled[c * pxb..(c + 1) * pxb]),
                     3..6 => {
                         let src = psv.plane_rgb(i, j);
                         pool(dst, (w, h), block, |p| src[3 * p + c - 3]);
@@ -209,8 +274,12 @@ fn pool(dst: &mut [f32], (w, h): (usize, usize), block: usize, value: impl Fn(us
     dst.fill(0.0);
     for y in 0..h {
         let row = &mut dst[(y / block) * wb..][..wb];
-        for x in 0..w {
-            row[x / block] += value(y * w + x);
+        for (xb, v) in row.iter_mut().enumerate() {
+            let p = y * w + xb * block;
+            // Summed left to right as before, without a division per pixel.
+            for x in 0..block {
+                *v += value(p + x);
+            }
         }
     }
     let norm = 1.0 / (block * block) as f32;
@@ -223,4 +292,70 @@ fn pool(dst: &mut [f32], (w, h): (usize, usize), block: usize, value: impl Fn(us
 fn logit(a: f32) -> f32 {
     let c = a.clamp(PRIOR_EPS, 1.0 - PRIOR_EPS);
     (c / (1.0 - c)).ln()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use burn::tensor::module::interpolate;
+    use burn::tensor::ops::{InterpolateMode, InterpolateOptions};
+
+    #[test]
+    fn the_fused_prior_gives_the_alphas_of_the_tensor_path() {
+        let device = Device::flex();
+        // Blocks of 4 (the pretrained model at 448 × 256), of 2, odd sizes, and none.
+        for (planes, (hs, ws), (h, w)) in [
+            (6, (4, 7), (16, 28)),
+            (3, (5, 3), (10, 6)),
+            (2, (3, 5), (7, 11)),
+            (4, (6, 5), (6, 5)),
+        ] {
+            let n = planes * h * w;
+            let alpha: Vec<f32> = (0..n)
+                .map(|k| match k % 7 {
+                    0 => 0.0,
+                    1 => 1.0,
+                    _ => ((k * 7919) % 1000) as f32 / 999.0,
+                })
+                .collect();
+            let prior = SweepPrior {
+                logit: alpha.iter().map(|&a| logit(a)).collect(),
+                correction: alpha
+                    .iter()
+                    .map(|&a| a - a.clamp(PRIOR_EPS, 1.0 - PRIOR_EPS))
+                    .collect(),
+                shape: (planes, h, w),
+            };
+            let small: Vec<f32> = (0..planes * hs * ws)
+                .map(|k| ((k * 104_729) % 201) as f32 / 20.0 - 5.0)
+                .collect();
+            let residual = Tensor::<4>::from_data(
+                TensorData::new(small.clone(), [1, planes, hs, ws]),
+                &device,
+            );
+            let mut opts = InterpolateOptions::new(InterpolateMode::Bilinear);
+            opts.output_size = Some([h, w]);
+            let up = if (hs, ws) == (h, w) {
+                residual
+            } else {
+                interpolate(residual, opts)
+            };
+            let want: Vec<f32> = prior
+                .apply(up.reshape([planes, 1, h, w]))
+                .into_data()
+                .try_to_vec::<f32>()
+                .unwrap();
+            let got = prior.apply_upsampled(&small, (hs, ws));
+            let worst = want
+                .iter()
+                .zip(&got)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0_f32, f32::max);
+            assert!(
+                worst <= 1e-6,
+                "{hs}x{ws} -> {h}x{w}: max |fused - tensors| = {worst}"
+            );
+            assert!(got.iter().all(|a| (0.0..=1.0).contains(a)));
+        }
+    }
 }

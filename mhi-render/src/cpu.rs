@@ -484,6 +484,25 @@ fn tile_plans(
 /// # Errors
 /// Only for invalid blend weights; degenerate geometry is masked (see [`RenderStats`]).
 pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Rendered> {
+    render_rows_with(mhi, target, opts, Rows::Fastest)
+}
+
+/// Which compilation of the row loop a render runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Rows {
+    /// AVX2 and FMA where the CPU has them, else the baseline.
+    Fastest,
+    /// The baseline x86-64 code (what a CPU without AVX2 runs; tests compare the two).
+    #[cfg_attr(not(test), allow(dead_code))]
+    Baseline,
+}
+
+fn render_rows_with(
+    mhi: &Mhi,
+    target: &Camera,
+    opts: &RenderOptions<'_>,
+    rows_kind: Rows,
+) -> Result<Rendered> {
     let (n, d) = (mhi.n(), mhi.d());
     let (tw, th) = (target.width as usize, target.height as usize);
     let px = tw * th;
@@ -523,7 +542,6 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
         stats.layers_pruned += skip.iter().filter(|s| **s).count();
         global_skip.push(skip);
     }
-    let tiles_x = tw.div_ceil(TILE_W);
     let tiles = tile_plans(mhi, &hs, &active, &global_skip, share, (tw, th));
     let (mut pairs, mut composited) = (0_usize, 0_usize);
     for t in &tiles {
@@ -535,178 +553,28 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
     } else {
         1.0
     };
-    let (rw, rh) = (
-        mhi.reference().width as usize,
-        mhi.reference().height as usize,
-    );
-    // Colour is read straight from the images' RGB rows (three floats per texel): copying
-    // 160 per-layer images into padded texels cost more than the unaligned reads.
-    let color_of = |k: usize| -> &[f32] {
-        match mhi.color() {
-            LayerColor::Shared(img) => img.as_raw(),
-            LayerColor::PerLayer(v) => v[k].as_raw(),
-        }
-    };
-    // A tile that leaves out less layer mass than its share passes the rest on to its
-    // transmittance stop: its pixels stop at `eps + share − mass`, so every pixel's bound is
-    // still dropped weight + layer mass + stop ≤ the budget.
-    let stop_of = |tile: &TilePlan| {
-        if eps > 0.0 {
-            eps + (share - tile.mass).max(0.0)
-        } else {
-            0.0
-        }
-    };
     stats.bound = dropped_max
         + tiles
             .iter()
-            .map(|t| t.mass + stop_of(t))
+            .map(|t| t.mass + stop_at(t, eps, share))
             .fold(0.0_f32, f32::max);
     let keep = opts.keep_multi_normal;
     // Each row: blended RGB (W·3) and, if kept, the N multi-normal rows (N·W·3).
-    let rows: Vec<(Vec<f32>, Vec<f32>, usize)> = (0..th)
-        .into_par_iter()
-        .map(|y| {
-            let mut out = vec![0.0_f32; tw * 3];
-            let mut mni = if keep {
-                vec![0.0_f32; n * tw * 3]
-            } else {
-                Vec::new()
-            };
-            let mut c = vec![0.0_f32; tw * 3];
-            let mut t = vec![1.0_f32; tw];
-            let (mut sxs, mut sys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
-            let (mut fxs, mut fys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
-            let mut idx = vec![0_u32; tw];
-            let stop = eps > 0.0;
-            let mut samples = 0_usize;
-            let v = y as f32 + 0.5;
-            let band = &tiles[(y / TILE_H) * tiles_x..][..tiles_x];
-            for i in 0..n {
-                if !active[i] {
-                    continue;
-                }
-                c.fill(0.0);
-                t.fill(1.0);
-                for (tile, x_start) in band.iter().zip((0..tw).step_by(TILE_W)) {
-                    // The span of the tile's row still open (transmittance above the stop):
-                    // pixels that stopped stay stopped, so it only shrinks, and both passes
-                    // below run over it alone.
-                    let (mut x0, mut x1) = (x_start, (x_start + TILE_W).min(tw));
-                    let eps = stop_of(tile);
-                    for &j in &tile.layers[i] {
-                        let (h, far) = (hs[i * d + j].unwrap_or([0.0; 9]), j == 0);
-                        let alpha = mhi.alpha_layer(i, j);
-                        let color = color_of(i * d + j);
-                        // Pass 1 (vectorisable): sample positions of the tile's row, split
-                        // into the top-left texel index and the bilinear fractions. Invalid
-                        // samples (w ≤ ε) are sent outside the image, where they read zero.
-                        let (bx, by, bw) = (h[1] * v + h[2], h[4] * v + h[5], h[7] * v + h[8]);
-                        let (wmax, hmax) = ((rw - 1) as f32, (rh - 1) as f32);
-                        // Zipped slices, not indices: bounds checks in the loop would keep
-                        // it from being vectorised.
-                        let pass1 = sxs[x0..x1]
-                            .iter_mut()
-                            .zip(&mut sys[x0..x1])
-                            .zip(&mut fxs[x0..x1])
-                            .zip(&mut fys[x0..x1])
-                            .zip(&mut idx[x0..x1]);
-                        for (k, ((((sx_out, sy_out), fx), fy), ix)) in pass1.enumerate() {
-                            let u = (x0 + k) as i32 as f32 + 0.5;
-                            let w = h[6] * u + bw;
-                            let ok = w > W_EPS;
-                            let inv = 1.0 / if ok { w } else { 1.0 };
-                            let sx = if ok {
-                                (h[0] * u + bx) * inv - 0.5
-                            } else {
-                                -2.0
-                            };
-                            let sy = if ok {
-                                (h[3] * u + by) * inv - 0.5
-                            } else {
-                                -2.0
-                            };
-                            *sx_out = sx;
-                            *sy_out = sy;
-                            // All four taps inside: 0 ≤ sx < w − 1 and 0 ≤ sy < h − 1.
-                            let inside = sx >= 0.0 && sy >= 0.0 && sx < wmax && sy < hmax;
-                            let (xf, yf) = (floor_small(sx, inside), floor_small(sy, inside));
-                            *fx = sx - xf;
-                            *fy = sy - yf;
-                            *ix = if inside {
-                                small_to_u32(yf) * rw as u32 + small_to_u32(xf)
-                            } else {
-                                u32::MAX
-                            };
-                        }
-                        // Pass 2: bilinear fetches and front-to-back compositing.
-                        for ((x, tx), cx) in t[x0..x1]
-                            .iter_mut()
-                            .enumerate()
-                            .map(|(k, tx)| (x0 + k, tx))
-                            .zip(c[3 * x0..3 * x1].chunks_exact_mut(3))
-                        {
-                            if stop && *tx <= eps {
-                                continue;
-                            }
-                            samples += 1;
-                            let (a, col) = if idx[x] != u32::MAX {
-                                let i = idx[x] as usize;
-                                let w = bilinear::weights(fxs[x], fys[x]);
-                                let (a_top, a_bot) = (&alpha[i..i + 2], &alpha[i + rw..i + rw + 2]);
-                                let (c_top, c_bot) = (
-                                    &color[3 * i..3 * i + 6],
-                                    &color[3 * (i + rw)..3 * (i + rw) + 6],
-                                );
-                                let [a] = bilinear::mix(
-                                    &w,
-                                    [[a_top[0]], [a_top[1]], [a_bot[0]], [a_bot[1]]],
-                                );
-                                let rgb = |t: &[f32]| [t[0], t[1], t[2]];
-                                let c = bilinear::mix(
-                                    &w,
-                                    [rgb(c_top), rgb(&c_top[3..]), rgb(c_bot), rgb(&c_bot[3..])],
-                                );
-                                (a, c)
-                            } else {
-                                // Border or outside: the general sampler (zero padding).
-                                sample(alpha, color, rw, rh, sxs[x], sys[x])
-                            };
-                            let a = if far { 1.0 } else { a };
-                            let ta = *tx * a;
-                            cx[0] += ta * col[0];
-                            cx[1] += ta * col[1];
-                            cx[2] += ta * col[2];
-                            *tx -= ta;
-                        }
-                        if stop {
-                            while x0 < x1 && t[x0] <= eps {
-                                x0 += 1;
-                            }
-                            while x1 > x0 && t[x1 - 1] <= eps {
-                                x1 -= 1;
-                            }
-                            // Every pixel of the tile's row is opaque: farther layers cannot
-                            // show.
-                            if x0 == x1 {
-                                break;
-                            }
-                        }
-                    }
-                }
-                let wrow = &weights[i * px + y * tw..i * px + (y + 1) * tw];
-                for x in 0..tw {
-                    for k in 0..3 {
-                        out[3 * x + k] += wrow[x] * c[3 * x + k];
-                    }
-                }
-                if keep {
-                    mni[i * tw * 3..(i + 1) * tw * 3].copy_from_slice(&c);
-                }
-            }
-            (out, mni, samples)
-        })
-        .collect();
+    let ctx = RowContext {
+        mhi,
+        hs: &hs,
+        active: &active,
+        tiles: &tiles,
+        weights: &weights,
+        width: tw,
+        pixels: px,
+        rows: rows_kind,
+        eps,
+        share,
+        keep,
+    };
+    let rows: Vec<(Vec<f32>, Vec<f32>, usize)> =
+        (0..th).into_par_iter().map(|y| ctx.row(y)).collect();
     let mut image = Rgb32FImage::new(target.width, target.height);
     let mut multi_normal = if keep {
         vec![Rgb32FImage::new(target.width, target.height); n]
@@ -736,6 +604,227 @@ pub fn render(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<Re
         weights,
         stats,
     })
+}
+
+/// A tile that leaves out less layer mass than its share passes the rest on to its
+/// transmittance stop: its pixels stop at `eps + share − mass`, so every pixel's bound is still
+/// dropped weight + layer mass + stop ≤ the budget (0: no stop).
+fn stop_at(tile: &TilePlan, eps: f32, share: f32) -> f32 {
+    if eps > 0.0 {
+        eps + (share - tile.mass).max(0.0)
+    } else {
+        0.0
+    }
+}
+
+/// What every row of a render reads.
+struct RowContext<'a> {
+    mhi: &'a Mhi,
+    /// Target→reference homographies per layer (`None`: invisible).
+    hs: &'a [Option<[f32; 9]>],
+    /// Normals kept.
+    active: &'a [bool],
+    /// Tile plans, row-major.
+    tiles: &'a [TilePlan],
+    /// Normalised blend weights `N × H × W`.
+    weights: &'a [f32],
+    /// Target width and pixels.
+    width: usize,
+    pixels: usize,
+    /// Which compilation of the row loop to run.
+    rows: Rows,
+    /// Transmittance stop and layer share of the budget.
+    eps: f32,
+    share: f32,
+    /// Also return the multi-normal rows.
+    keep: bool,
+}
+
+impl RowContext<'_> {
+    /// Target row `y`: blended RGB (W·3), the N multi-normal rows (N·W·3) if kept, and the
+    /// samples composited. Compiled twice: for the baseline x86-64 and, picked at run time
+    /// where the CPU has them, with AVX2 and FMA (the same arithmetic: Rust never fuses a
+    /// multiply and an add on its own, so both give the same bits).
+    fn row(&self, y: usize) -> (Vec<f32>, Vec<f32>, usize) {
+        #[cfg(target_arch = "x86_64")]
+        if self.rows == Rows::Fastest
+            && std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: `row_avx2` only needs AVX2 and FMA, which the CPU was just found to have.
+            #[allow(unsafe_code)]
+            return unsafe { self.row_avx2(y) };
+        }
+        self.row_generic(y)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn row_avx2(&self, y: usize) -> (Vec<f32>, Vec<f32>, usize) {
+        self.row_generic(y)
+    }
+
+    /// Colour of layer `k`, read straight from the images' RGB rows (three floats per texel):
+    /// copying 160 per-layer images into padded texels cost more than the unaligned reads.
+    #[inline(always)]
+    fn color_of(&self, k: usize) -> &[f32] {
+        match self.mhi.color() {
+            LayerColor::Shared(img) => img.as_raw(),
+            LayerColor::PerLayer(v) => v[k].as_raw(),
+        }
+    }
+
+    #[inline(always)]
+    fn row_generic(&self, y: usize) -> (Vec<f32>, Vec<f32>, usize) {
+        let (mhi, hs, active, tiles, weights) =
+            (self.mhi, self.hs, self.active, self.tiles, self.weights);
+        let (n, d, tw) = (mhi.n(), mhi.d(), self.width);
+        let px = self.pixels;
+        let (rw, rh) = (
+            mhi.reference().width as usize,
+            mhi.reference().height as usize,
+        );
+        let (eps, share, keep) = (self.eps, self.share, self.keep);
+        let tiles_x = tw.div_ceil(TILE_W);
+        let color_of = |k: usize| self.color_of(k);
+        let stop_of = |tile: &TilePlan| stop_at(tile, eps, share);
+        let mut out = vec![0.0_f32; tw * 3];
+        let mut mni = if keep {
+            vec![0.0_f32; n * tw * 3]
+        } else {
+            Vec::new()
+        };
+        let mut c = vec![0.0_f32; tw * 3];
+        let mut t = vec![1.0_f32; tw];
+        let (mut sxs, mut sys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
+        let (mut fxs, mut fys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
+        let mut idx = vec![0_u32; tw];
+        let stop = eps > 0.0;
+        let mut samples = 0_usize;
+        let v = y as f32 + 0.5;
+        let band = &tiles[(y / TILE_H) * tiles_x..][..tiles_x];
+        for i in 0..n {
+            if !active[i] {
+                continue;
+            }
+            c.fill(0.0);
+            t.fill(1.0);
+            for (tile, x_start) in band.iter().zip((0..tw).step_by(TILE_W)) {
+                // The span of the tile's row still open (transmittance above the stop):
+                // pixels that stopped stay stopped, so it only shrinks, and both passes
+                // below run over it alone.
+                let (mut x0, mut x1) = (x_start, (x_start + TILE_W).min(tw));
+                let eps = stop_of(tile);
+                for &j in &tile.layers[i] {
+                    let (h, far) = (hs[i * d + j].unwrap_or([0.0; 9]), j == 0);
+                    let alpha = mhi.alpha_layer(i, j);
+                    let color = color_of(i * d + j);
+                    // Pass 1 (vectorisable): sample positions of the tile's row, split
+                    // into the top-left texel index and the bilinear fractions. Invalid
+                    // samples (w ≤ ε) are sent outside the image, where they read zero.
+                    let (bx, by, bw) = (h[1] * v + h[2], h[4] * v + h[5], h[7] * v + h[8]);
+                    let (wmax, hmax) = ((rw - 1) as f32, (rh - 1) as f32);
+                    // Zipped slices, not indices: bounds checks in the loop would keep
+                    // it from being vectorised.
+                    let pass1 = sxs[x0..x1]
+                        .iter_mut()
+                        .zip(&mut sys[x0..x1])
+                        .zip(&mut fxs[x0..x1])
+                        .zip(&mut fys[x0..x1])
+                        .zip(&mut idx[x0..x1]);
+                    for (k, ((((sx_out, sy_out), fx), fy), ix)) in pass1.enumerate() {
+                        let u = (x0 + k) as i32 as f32 + 0.5;
+                        let w = h[6] * u + bw;
+                        let ok = w > W_EPS;
+                        let inv = 1.0 / if ok { w } else { 1.0 };
+                        let sx = if ok {
+                            (h[0] * u + bx) * inv - 0.5
+                        } else {
+                            -2.0
+                        };
+                        let sy = if ok {
+                            (h[3] * u + by) * inv - 0.5
+                        } else {
+                            -2.0
+                        };
+                        *sx_out = sx;
+                        *sy_out = sy;
+                        // All four taps inside: 0 ≤ sx < w − 1 and 0 ≤ sy < h − 1.
+                        let inside = sx >= 0.0 && sy >= 0.0 && sx < wmax && sy < hmax;
+                        let (xf, yf) = (floor_small(sx, inside), floor_small(sy, inside));
+                        *fx = sx - xf;
+                        *fy = sy - yf;
+                        *ix = if inside {
+                            small_to_u32(yf) * rw as u32 + small_to_u32(xf)
+                        } else {
+                            u32::MAX
+                        };
+                    }
+                    // Pass 2: bilinear fetches and front-to-back compositing.
+                    for ((x, tx), cx) in t[x0..x1]
+                        .iter_mut()
+                        .enumerate()
+                        .map(|(k, tx)| (x0 + k, tx))
+                        .zip(c[3 * x0..3 * x1].chunks_exact_mut(3))
+                    {
+                        if stop && *tx <= eps {
+                            continue;
+                        }
+                        samples += 1;
+                        let (a, col) = if idx[x] != u32::MAX {
+                            let i = idx[x] as usize;
+                            let w = bilinear::weights(fxs[x], fys[x]);
+                            let (a_top, a_bot) = (&alpha[i..i + 2], &alpha[i + rw..i + rw + 2]);
+                            let (c_top, c_bot) = (
+                                &color[3 * i..3 * i + 6],
+                                &color[3 * (i + rw)..3 * (i + rw) + 6],
+                            );
+                            let [a] =
+                                bilinear::mix(&w, [[a_top[0]], [a_top[1]], [a_bot[0]], [a_bot[1]]]);
+                            let rgb = |t: &[f32]| [t[0], t[1], t[2]];
+                            let c = bilinear::mix(
+                                &w,
+                                [rgb(c_top), rgb(&c_top[3..]), rgb(c_bot), rgb(&c_bot[3..])],
+                            );
+                            (a, c)
+                        } else {
+                            // Border or outside: the general sampler (zero padding).
+                            sample(alpha, color, rw, rh, sxs[x], sys[x])
+                        };
+                        let a = if far { 1.0 } else { a };
+                        let ta = *tx * a;
+                        cx[0] += ta * col[0];
+                        cx[1] += ta * col[1];
+                        cx[2] += ta * col[2];
+                        *tx -= ta;
+                    }
+                    if stop {
+                        while x0 < x1 && t[x0] <= eps {
+                            x0 += 1;
+                        }
+                        while x1 > x0 && t[x1 - 1] <= eps {
+                            x1 -= 1;
+                        }
+                        // Every pixel of the tile's row is opaque: farther layers cannot
+                        // show.
+                        if x0 == x1 {
+                            break;
+                        }
+                    }
+                }
+            }
+            let wrow = &weights[i * px + y * tw..i * px + (y + 1) * tw];
+            for x in 0..tw {
+                for k in 0..3 {
+                    out[3 * x + k] += wrow[x] * c[3 * x + k];
+                }
+            }
+            if keep {
+                mni[i * tw * 3..(i + 1) * tw * 3].copy_from_slice(&c);
+            }
+        }
+        (out, mni, samples)
+    }
 }
 
 /// The least share of the (target pixel, visible layer) samples any render within `budget` must
@@ -901,7 +990,60 @@ pub fn combine(mni: &[Rgb32FImage], weights: &[f32]) -> Rgb32FImage {
 
 #[cfg(test)]
 mod tests {
-    use super::{floor_small, small_to_u32};
+    use super::*;
+    use glam::DVec3;
+    use mhi_geom::{Intrinsics, RigidTransform, depths_linear_in_disparity};
+
+    #[test]
+    fn the_avx2_rows_give_the_baseline_rows_bits() {
+        // A small MHI with both colour layouts, seen turned and moved, exactly and pruned.
+        let k = Intrinsics::new(20.0, 20.0, 18.0, 12.0).unwrap();
+        let reference = Camera::new(k, RigidTransform::IDENTITY, 37, 23).unwrap();
+        let rel = RigidTransform::new(
+            DMat3::from_axis_angle(DVec3::new(0.3, 1.0, 0.1).normalize(), 0.2),
+            DVec3::new(0.2, -0.05, 0.1),
+        )
+        .unwrap();
+        let target = Camera::new(k, rel.inverse(), 41, 19).unwrap();
+        let (n, d, px) = (3, 6, 37 * 23);
+        let value = |i: usize| ((i * 7919) % 1000) as f32 / 999.0;
+        let image = |seed: usize| {
+            Rgb32FImage::from_fn(37, 23, |x, y| {
+                let i = seed + (y * 37 + x) as usize * 3;
+                image::Rgb([value(i), value(i + 1), value(i + 2)])
+            })
+        };
+        for per_layer in [false, true] {
+            let color = if per_layer {
+                LayerColor::PerLayer((0..n * d).map(|l| image(l * 5000)).collect())
+            } else {
+                LayerColor::Shared(image(0))
+            };
+            let alpha = (0..n * d * px).map(|i| value(i * 3 + 1).powi(3)).collect();
+            let mhi = Mhi::new(
+                mhi_geom::NormalSet::paper_subset(n).unwrap(),
+                depths_linear_in_disparity(1.0, 50.0, d).unwrap(),
+                reference,
+                color,
+                alpha,
+            )
+            .unwrap();
+            for prune in [Prune::NONE, Prune::DEFAULT] {
+                let opts = RenderOptions {
+                    prune,
+                    keep_multi_normal: true,
+                    ..Default::default()
+                };
+                let fast = render_rows_with(&mhi, &target, &opts, Rows::Fastest).unwrap();
+                let base = render_rows_with(&mhi, &target, &opts, Rows::Baseline).unwrap();
+                assert_eq!(fast.image.as_raw(), base.image.as_raw());
+                for (a, b) in fast.multi_normal.iter().zip(&base.multi_normal) {
+                    assert_eq!(a.as_raw(), b.as_raw());
+                }
+                assert_eq!(fast.stats, base.stats);
+            }
+        }
+    }
 
     #[test]
     fn floor_small_is_the_floor_of_every_position_a_render_samples() {

@@ -152,13 +152,16 @@ impl Model {
             }
             None => data(alphas_of(&self.stage1, input).into_data())?,
         };
-        if let Some(k) = v.iter().position(|a| !a.is_finite()) {
+        use rayon::prelude::*;
+        if let Some(k) = v.par_iter().position_first(|a| !a.is_finite()) {
             return Err(Error::NonFinite(format!(
                 "stage 1 produced {} at alpha {k}",
                 v[k]
             )));
         }
-        Ok(v.into_iter().map(|a| a.clamp(0.0, 1.0)).collect())
+        let mut v = v;
+        v.par_iter_mut().for_each(|a| *a = a.clamp(0.0, 1.0));
+        Ok(v)
     }
 
     /// The MHI of the reference view with the given alphas.

@@ -188,9 +188,22 @@ pub fn stage1_input(
         None => None,
     };
     use rayon::prelude::*;
-    let logits: Option<Vec<f32>> = sweep
-        .as_ref()
-        .map(|a| a.par_iter().map(|&v| logit(v)).collect());
+    // Most of the sweep's alphas are clamped (its softmax is peaked): their logits are two
+    // constants, taken once instead of a logarithm each.
+    let (lo, hi) = (logit(0.0), logit(1.0));
+    let logits: Option<Vec<f32>> = sweep.as_ref().map(|a| {
+        a.par_iter()
+            .map(|&v| {
+                if v <= PRIOR_EPS {
+                    lo
+                } else if v >= 1.0 - PRIOR_EPS {
+                    hi
+                } else {
+                    logit(v)
+                }
+            })
+            .collect()
+    });
     let channels = if sweep.is_some() { 7 } else { 6 };
     let volume = fill_volume(&psv, &reference.image, logits.as_deref(), block);
     let (hb, wb) = (h / block, w / block);

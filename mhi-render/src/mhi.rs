@@ -76,7 +76,10 @@ impl Mhi {
                 alpha.len()
             )));
         }
-        if let Some(k) = alpha.iter().position(|a| !(0.0..=1.0).contains(a)) {
+        if let Some(k) = alpha
+            .par_iter()
+            .position_first(|a| !(0.0..=1.0).contains(a))
+        {
             return Err(Error::InvalidMhi(format!(
                 "alpha must lie in [0, 1]; value {} at layer {}, pixel {}",
                 alpha[k],

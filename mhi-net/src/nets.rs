@@ -197,7 +197,10 @@ impl UNet3d {
         }
         for (up, dec) in self.up.iter().zip(&self.dec).rev() {
             let skip = skips.pop().expect("one skip per level");
-            x = dec.forward(Tensor::cat(vec![up.forward(x), skip], 1));
+            x = dec.forward(Tensor::cat(
+                vec![crate::fastconv::forward_transposed(up, x), skip],
+                1,
+            ));
         }
         let y = crate::fastconv::forward(&self.head, x);
         if self.residual { y } else { sigmoid(y) }
@@ -430,7 +433,10 @@ impl BlendNet {
         }
         for (up, dec) in self.up.iter().zip(&self.dec).rev() {
             let skip = skips.pop().expect("one skip per level");
-            x = dec.forward(Tensor::cat(vec![up.forward(x), skip], 1));
+            x = dec.forward(Tensor::cat(
+                vec![crate::fastconv::forward_transposed2d(up, x), skip],
+                1,
+            ));
         }
         let logits = crate::fastconv::forward2d(&self.head, x);
         softmax(

@@ -161,6 +161,87 @@ pub fn forward(conv: &burn::nn::conv::Conv3d, x: Tensor<5>) -> Tensor<5> {
     )
 }
 
+/// `conv_transpose3d(x, weight) + bias` (weight `[cin, cout, kd, kh, kw]`). Where the kernel
+/// equals the stride (no overlap: every output voxel comes from one input voxel and one kernel
+/// offset), with no padding, dilation or groups, on the CPU backend: a 1 × 1 × 1 [`conv3d`] to
+/// `cout · kd · kh · kw` channels, whose channels are then interleaved into the output's
+/// positions (reshape and permute; autodiff follows them). burn's transposed convolution took
+/// 4× PyTorch's time forward and backward on stage 1's upsampling (docs/SPEED.md). Anything else
+/// is burn's `conv_transpose3d`. Same arguments and result as
+/// `burn::tensor::module::conv_transpose3d`.
+pub fn conv_transpose3d(
+    x: Tensor<5>,
+    weight: Tensor<5>,
+    bias: Option<Tensor<1>>,
+    options: burn::tensor::ops::ConvTransposeOptions<3>,
+) -> Tensor<5> {
+    let [b, cin, d, h, w] = x.dims();
+    let [wcin, cout, kd, kh, kw] = weight.dims();
+    let plain = options.stride == [kd, kh, kw]
+        && options.padding == [0; 3]
+        && options.padding_out == [0; 3]
+        && options.dilation == [1; 3]
+        && options.groups == 1
+        && wcin == cin;
+    if !on_flex(&x) || !plain || x.dims().contains(&0) || weight.dims().contains(&0) {
+        return burn::tensor::module::conv_transpose3d(x, weight, bias, options);
+    }
+    let kk = kd * kh * kw;
+    // [cin, cout, kd, kh, kw] → [cout · kd · kh · kw, cin, 1, 1, 1]
+    let w1 = weight
+        .reshape([cin, cout * kk])
+        .transpose()
+        .reshape([cout * kk, cin, 1, 1, 1]);
+    let y = conv3d(x, w1, None, ConvOptions::new([1; 3], [0; 3], [1; 3], 1));
+    // [b, cout, kd, kh, kw, d, h, w] → [b, cout, d, kd, h, kh, w, kw]
+    let y = y
+        .reshape([b, cout, kd, kh, kw, d, h, w])
+        .permute([0, 1, 5, 2, 6, 3, 7, 4])
+        .reshape([b, cout, d * kd, h * kh, w * kw]);
+    match bias {
+        Some(bias) => y + bias.reshape([1, cout, 1, 1, 1]),
+        None => y,
+    }
+}
+
+/// `conv.forward(x)` of a `burn::nn::conv::ConvTranspose3d` module, through
+/// [`conv_transpose3d`].
+pub fn forward_transposed(conv: &burn::nn::conv::ConvTranspose3d, x: Tensor<5>) -> Tensor<5> {
+    conv_transpose3d(
+        x,
+        conv.weight.val(),
+        conv.bias.as_ref().map(|b| b.val()),
+        burn::tensor::ops::ConvTransposeOptions::new(
+            conv.stride,
+            conv.padding,
+            conv.padding_out,
+            conv.dilation,
+            conv.groups,
+        ),
+    )
+}
+
+/// `conv.forward(x)` of a `burn::nn::conv::ConvTranspose2d` module, as [`conv_transpose3d`] over
+/// one plane.
+pub fn forward_transposed2d(conv: &burn::nn::conv::ConvTranspose2d, x: Tensor<4>) -> Tensor<4> {
+    let [b, c, h, w] = x.dims();
+    let [wi, wo, kh, kw] = conv.weight.dims();
+    let y = conv_transpose3d(
+        x.reshape([b, c, 1, h, w]),
+        conv.weight.val().reshape([wi, wo, 1, kh, kw]),
+        conv.bias.as_ref().map(|b| b.val()),
+        burn::tensor::ops::ConvTransposeOptions::new(
+            [1, conv.stride[0], conv.stride[1]],
+            [0, conv.padding[0], conv.padding[1]],
+            [0, conv.padding_out[0], conv.padding_out[1]],
+            [1, conv.dilation[0], conv.dilation[1]],
+            conv.groups,
+        ),
+    );
+    let [b, c, _, h, w] = y.dims();
+    y.reshape([b, c, h, w])
+}
+
 /// `conv2d(x, weight) + bias` as a 3D convolution over one plane: [`conv3d`] on the CPU
 /// backend, burn's `conv2d` elsewhere. Same arguments and result as
 /// `burn::tensor::module::conv2d`.
@@ -484,7 +565,18 @@ mod tests {
         [usize; 3],
     );
 
-    const CASES: [Case; 6] = [
+    const CASES: [Case; 7] = [
+        // Wide enough for the direct kernels, forward and both gradients.
+        (
+            2,
+            9,
+            8,
+            [3, 12, 12],
+            [3, 3, 3],
+            [1, 1, 1],
+            [1, 1, 1],
+            [1, 1, 1],
+        ),
         (
             2,
             3,
@@ -635,8 +727,253 @@ mod tests {
     }
 
     #[test]
+    fn the_direct_kernel_matches_an_f64_reference() {
+        let dev = Device::flex();
+        let wide: [Case; 3] = [
+            (2, 16, 8, [3, 9, 11], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            (
+                1,
+                17,
+                5,
+                [2, 16, 13],
+                [3, 3, 3],
+                [1; 3],
+                [1, 4, 4],
+                [1, 4, 4],
+            ),
+            (2, 16, 3, [1, 1, 7], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+        ];
+        for (batch, cin, cout, input, kernel, stride, dilation, padding) in
+            CASES.into_iter().chain(wide)
+        {
+            if stride != [1, 1, 1] {
+                continue;
+            }
+            let s = ConvShape {
+                batch,
+                cin,
+                cout,
+                input,
+                kernel,
+                stride,
+                dilation,
+                padding,
+            };
+            let x = values(&Tensor::<5>::random(
+                [batch, cin, input[0], input[1], input[2]],
+                Distribution::Uniform(-1.0, 1.0),
+                &dev,
+            ));
+            let w = values(&Tensor::<5>::random(
+                [cout, cin, kernel[0], kernel[1], kernel[2]],
+                Distribution::Uniform(-1.0, 1.0),
+                &dev,
+            ));
+            let bias: Vec<f32> = (0..cout).map(|i| i as f32 * 0.25 - 0.5).collect();
+            let ours = forward_direct(&s, &x, &w, Some(&bias));
+            let exact = reference(&s, &x, &w);
+            let sp = exact.len() / (batch * cout);
+            let err = ours
+                .iter()
+                .zip(&exact)
+                .enumerate()
+                .map(|(i, (a, b))| (f64::from(*a) - b - f64::from(bias[(i / sp) % cout])).abs())
+                .fold(0.0, f64::max);
+            assert!(err < 1e-4, "{s:?}: max error {err} against f64");
+            let gy = values(&Tensor::<5>::random(
+                [batch, cout, exact.len() / (batch * cout), 1, 1],
+                Distribution::Uniform(-1.0, 1.0),
+                &dev,
+            ));
+            let (ours, theirs) = (
+                grad_weight_direct(&s, &x, &gy),
+                im2col_grad_weight(&s, &x, &gy),
+            );
+            let err = max_diff(&ours, &theirs);
+            let scale = theirs.iter().fold(1.0f32, |m, v| m.max(v.abs()));
+            assert!(
+                err <= 1e-5 * scale,
+                "{s:?}: weight gradient differs by {err} (scale {scale})"
+            );
+        }
+    }
+
+    #[test]
+    #[ignore = "timing, run by hand"]
+    fn direct_against_im2col_timing() {
+        let dev = Device::flex();
+        let shapes: [Case; 13] = [
+            (5, 6, 8, [8, 64, 64], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            (5, 8, 8, [8, 64, 64], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            (6, 3, 64, [1, 64, 64], [1, 3, 3], [1; 3], [1; 3], [0, 1, 1]),
+            (6, 64, 64, [1, 64, 64], [1, 3, 3], [1; 3], [1; 3], [0, 1, 1]),
+            (
+                6,
+                128,
+                128,
+                [1, 32, 32],
+                [1, 3, 3],
+                [1; 3],
+                [1; 3],
+                [0, 1, 1],
+            ),
+            (6, 512, 512, [1, 8, 8], [1, 3, 3], [1; 3], [1; 3], [0, 1, 1]),
+            (5, 32, 16, [8, 32, 32], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            (5, 32, 32, [8, 16, 16], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            (
+                5,
+                32,
+                32,
+                [8, 16, 16],
+                [3, 3, 3],
+                [1; 3],
+                [1, 4, 4],
+                [1, 4, 4],
+            ),
+            (5, 16, 8, [8, 64, 64], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            (5, 16, 32, [8, 32, 32], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            (5, 16, 8, [16, 128, 224], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            (5, 32, 16, [16, 64, 112], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+        ];
+        for (batch, cin, cout, input, kernel, stride, dilation, padding) in shapes {
+            let s = ConvShape {
+                batch,
+                cin,
+                cout,
+                input,
+                kernel,
+                stride,
+                dilation,
+                padding,
+            };
+            let x = values(&Tensor::<5>::random(
+                [batch, cin, input[0], input[1], input[2]],
+                Distribution::Uniform(-1.0, 1.0),
+                &dev,
+            ));
+            let w = values(&Tensor::<5>::random(
+                [cout, cin, kernel[0], kernel[1], kernel[2]],
+                Distribution::Uniform(-1.0, 1.0),
+                &dev,
+            ));
+            let time = |f: &dyn Fn() -> Vec<f32>| {
+                let mut v: Vec<f64> = (0..15)
+                    .map(|_| {
+                        let t = std::time::Instant::now();
+                        std::hint::black_box(f());
+                        t.elapsed().as_secs_f64() * 1e3
+                    })
+                    .collect();
+                v.sort_by(f64::total_cmp);
+                v[7]
+            };
+            let gy = values(&Tensor::<5>::random(
+                [batch, cout, input[0], input[1], input[2]],
+                Distribution::Uniform(-1.0, 1.0),
+                &dev,
+            ));
+            let (mut a, mut b, mut c, mut d) = (0.0, 0.0, 0.0, 0.0);
+            for _ in 0..3 {
+                a += time(&|| im2col_forward(&s, &x, &w, None));
+                b += time(&|| forward_direct(&s, &x, &w, None));
+                c += time(&|| im2col_grad_weight(&s, &x, &gy));
+                d += time(&|| grad_weight_direct(&s, &x, &gy));
+            }
+            println!(
+                "{cin}->{cout} {input:?} dil {dilation:?}: forward im2col {:.2} ms, direct {:.2} ms; weight gradient {:.2} / {:.2} ms",
+                a / 3.0,
+                b / 3.0,
+                c / 3.0,
+                d / 3.0
+            );
+        }
+    }
+
+    #[test]
+    fn transposed_conv3d_and_its_gradients_match_burn() {
+        use burn::tensor::ops::ConvTransposeOptions;
+        let dev = Device::flex().autodiff();
+        // (batch, cin, cout, input, kernel = stride, padding): the interleaving path, then
+        // shapes it must hand to burn (padding; kernel wider than the stride).
+        type TCase = (
+            usize,
+            usize,
+            usize,
+            [usize; 3],
+            [usize; 3],
+            [usize; 3],
+            [usize; 3],
+        );
+        let cases: [TCase; 4] = [
+            (2, 5, 3, [3, 4, 6], [1, 2, 2], [1, 2, 2], [0; 3]),
+            (1, 4, 6, [2, 3, 5], [2, 3, 2], [2, 3, 2], [0; 3]),
+            (1, 3, 2, [2, 4, 4], [1, 2, 2], [1, 2, 2], [0, 1, 1]),
+            (1, 3, 2, [2, 4, 4], [1, 3, 3], [1, 2, 2], [0; 3]),
+        ];
+        for (batch, cin, cout, input, kernel, stride, padding) in cases {
+            let r = |shape: [usize; 5]| {
+                Tensor::<5>::random(shape, Distribution::Uniform(-1.0, 1.0), &dev)
+            };
+            let x = r([batch, cin, input[0], input[1], input[2]]).require_grad();
+            let w = r([cin, cout, kernel[0], kernel[1], kernel[2]]).require_grad();
+            let b =
+                Tensor::<1>::random([cout], Distribution::Uniform(-1.0, 1.0), &dev).require_grad();
+            let o = ConvTransposeOptions::new(stride, padding, [0; 3], [1; 3], 1);
+            let theirs = burn::tensor::module::conv_transpose3d(
+                x.clone(),
+                w.clone(),
+                Some(b.clone()),
+                o.clone(),
+            );
+            let ours = super::conv_transpose3d(x.clone(), w.clone(), Some(b.clone()), o);
+            assert_eq!(theirs.dims(), ours.dims(), "{kernel:?} {stride:?}");
+            let err = max_diff(&values(&ours), &values(&theirs));
+            assert!(
+                err < 1e-5,
+                "forward differs by {err} ({kernel:?} {stride:?})"
+            );
+            let weights = r(theirs.dims());
+            let g1 = (theirs * weights.clone()).sum().backward();
+            let g2 = (ours * weights).sum().backward();
+            for (name, a, bb) in [
+                ("x", x.grad(&g2), x.grad(&g1)),
+                ("weight", w.grad(&g2), w.grad(&g1)),
+            ] {
+                let err = max_diff(&values(&a.expect("ours")), &values(&bb.expect("burn's")));
+                assert!(
+                    err < 1e-4,
+                    "gradient of {name} differs by {err} ({kernel:?})"
+                );
+            }
+            let err = max_diff(
+                &values(&b.grad(&g2).unwrap()),
+                &values(&b.grad(&g1).unwrap()),
+            );
+            assert!(err < 1e-4, "bias gradient differs by {err}");
+        }
+    }
+
+    #[test]
     fn conv3d_and_its_gradients_match_burn() {
         let dev = Device::flex().autodiff();
+        let direct = |(batch, cin, cout, input, kernel, stride, dilation, padding): Case| {
+            let s = ConvShape {
+                batch,
+                cin,
+                cout,
+                input,
+                kernel,
+                stride,
+                dilation,
+                padding,
+            };
+            (direct_applies(&s), direct_grad_weight_applies(&s))
+        };
+        assert_eq!(
+            direct(CASES[0]),
+            (true, true),
+            "the direct kernels are covered"
+        );
         for (batch, cin, cout, input, kernel, stride, dilation, padding) in CASES {
             let r = |shape: [usize; 5]| {
                 Tensor::<5>::random(shape, Distribution::Uniform(-1.0, 1.0), &dev)

@@ -5,7 +5,6 @@
 
 use std::path::Path;
 
-use burn::tensor::module::conv_transpose3d;
 use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
 use burn::tensor::{Device, Distribution, Tensor};
 
@@ -73,7 +72,9 @@ fn op_fn(op: &OpSpec, device: &Device, grad: bool) -> Box<dyn Fn() -> Tensor<1>>
             let x = g(rand(dims5(&op.input), device));
             let w = g(rand([op.input[1], op.cout, 1, 2, 2], device));
             let o = ConvTransposeOptions::new([1, s, s], [0, 0, 0], [0, 0, 0], [1, 1, 1], 1);
-            Box::new(move || conv_transpose3d(x.clone(), w.clone(), None, o.clone()).mean())
+            Box::new(move || {
+                mhi_net::fastconv::conv_transpose3d(x.clone(), w.clone(), None, o.clone()).mean()
+            })
         }
         "layernorm5" => {
             // The model's layer norm over channels (no permutes on the CPU backend; PyTorch's

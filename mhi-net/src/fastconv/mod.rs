@@ -545,6 +545,33 @@ mod tests {
             .expect("f32 data")
     }
 
+    fn shape((batch, cin, cout, input, kernel, stride, dilation, padding): Case) -> ConvShape {
+        ConvShape {
+            batch,
+            cin,
+            cout,
+            input,
+            kernel,
+            stride,
+            dilation,
+            padding,
+        }
+    }
+
+    /// A random input and weight of the shape `s`, in [−1, 1].
+    fn inputs(s: &ConvShape, dev: &Device) -> (Vec<f32>, Vec<f32>) {
+        let [d, h, w] = s.input;
+        let [kd, kh, kw] = s.kernel;
+        let r = |dims: [usize; 5]| {
+            values(&Tensor::<5>::random(
+                dims,
+                Distribution::Uniform(-1.0, 1.0),
+                dev,
+            ))
+        };
+        (r([s.batch, s.cin, d, h, w]), r([s.cout, s.cin, kd, kh, kw]))
+    }
+
     fn max_diff(a: &[f32], b: &[f32]) -> f32 {
         assert_eq!(a.len(), b.len());
         a.iter()
@@ -565,7 +592,7 @@ mod tests {
         [usize; 3],
     );
 
-    const CASES: [Case; 7] = [
+    const CASES: [Case; 8] = [
         // Wide enough for the direct kernels, forward and both gradients.
         (
             2,
@@ -574,6 +601,17 @@ mod tests {
             [3, 12, 12],
             [3, 3, 3],
             [1, 1, 1],
+            [1, 1, 1],
+            [1, 1, 1],
+        ),
+        // The same with stride 2 in the image axes (the direct kernels on the input's phases).
+        (
+            2,
+            8,
+            16,
+            [3, 10, 12],
+            [3, 3, 3],
+            [1, 2, 2],
             [1, 1, 1],
             [1, 1, 1],
         ),
@@ -693,27 +731,8 @@ mod tests {
     fn the_kernel_matches_an_f64_reference() {
         let dev = Device::flex();
         for (batch, cin, cout, input, kernel, stride, dilation, padding) in CASES {
-            let s = ConvShape {
-                batch,
-                cin,
-                cout,
-                input,
-                kernel,
-                stride,
-                dilation,
-                padding,
-            };
-            let x = Tensor::<5>::random(
-                [batch, cin, input[0], input[1], input[2]],
-                Distribution::Uniform(-1.0, 1.0),
-                &dev,
-            );
-            let w = Tensor::<5>::random(
-                [cout, cin, kernel[0], kernel[1], kernel[2]],
-                Distribution::Uniform(-1.0, 1.0),
-                &dev,
-            );
-            let (x, w) = (values(&x), values(&w));
+            let s = shape((batch, cin, cout, input, kernel, stride, dilation, padding));
+            let (x, w) = inputs(&s, &dev);
             let ours = forward(&s, &x, &w, None);
             let exact = reference(&s, &x, &w);
             let err = ours
@@ -729,8 +748,34 @@ mod tests {
     #[test]
     fn the_direct_kernel_matches_an_f64_reference() {
         let dev = Device::flex();
-        let wide: [Case; 3] = [
+        let wide: [Case; 8] = [
             (2, 16, 8, [3, 9, 11], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            // Strides in the image axes: odd and even sizes, a stride of 3, dilation with stride.
+            (2, 8, 16, [3, 17, 16], [3, 3, 3], [1, 2, 2], [1; 3], [1; 3]),
+            (
+                1,
+                9,
+                4,
+                [2, 13, 11],
+                [3, 3, 3],
+                [1, 2, 3],
+                [1, 2, 1],
+                [1, 2, 1],
+            ),
+            (1, 8, 5, [2, 8, 9], [1, 1, 1], [1, 2, 2], [1; 3], [0; 3]),
+            // Output channels in blocks of 8 and 16 for the register-blocked kernel, with a
+            // 7-channel input (stage 1's stem on the sweep prior) and with dilation.
+            (2, 7, 24, [3, 10, 13], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            (
+                1,
+                6,
+                32,
+                [2, 12, 12],
+                [3, 3, 3],
+                [1, 2, 2],
+                [1, 2, 2],
+                [1, 2, 2],
+            ),
             (
                 1,
                 17,
@@ -746,40 +791,30 @@ mod tests {
         for (batch, cin, cout, input, kernel, stride, dilation, padding) in
             CASES.into_iter().chain(wide)
         {
-            if stride != [1, 1, 1] {
+            if stride[0] != 1 {
                 continue;
             }
-            let s = ConvShape {
-                batch,
-                cin,
-                cout,
-                input,
-                kernel,
-                stride,
-                dilation,
-                padding,
-            };
-            let x = values(&Tensor::<5>::random(
-                [batch, cin, input[0], input[1], input[2]],
-                Distribution::Uniform(-1.0, 1.0),
-                &dev,
-            ));
-            let w = values(&Tensor::<5>::random(
-                [cout, cin, kernel[0], kernel[1], kernel[2]],
-                Distribution::Uniform(-1.0, 1.0),
-                &dev,
-            ));
+            let s = shape((batch, cin, cout, input, kernel, stride, dilation, padding));
+            let (x, w) = inputs(&s, &dev);
             let bias: Vec<f32> = (0..cout).map(|i| i as f32 * 0.25 - 0.5).collect();
-            let ours = forward_direct(&s, &x, &w, Some(&bias));
             let exact = reference(&s, &x, &w);
             let sp = exact.len() / (batch * cout);
-            let err = ours
-                .iter()
-                .zip(&exact)
-                .enumerate()
-                .map(|(i, (a, b))| (f64::from(*a) - b - f64::from(bias[(i / sp) % cout])).abs())
-                .fold(0.0, f64::max);
-            assert!(err < 1e-4, "{s:?}: max error {err} against f64");
+            // Both direct kernels: one gemm per kernel offset, and the register-blocked one
+            // where the CPU and the output channels allow it.
+            let mut kernels = vec![("gemm", forward_direct_gemm(&s, &x, &w, Some(&bias)))];
+            #[cfg(target_arch = "x86_64")]
+            if blocked::applies(&s) {
+                kernels.push(("blocked", blocked::forward(&s, &x, &w, Some(&bias))));
+            }
+            for (name, ours) in kernels {
+                let err = ours
+                    .iter()
+                    .zip(&exact)
+                    .enumerate()
+                    .map(|(i, (a, b))| (f64::from(*a) - b - f64::from(bias[(i / sp) % cout])).abs())
+                    .fold(0.0, f64::max);
+                assert!(err < 1e-4, "{s:?}: {name}: max error {err} against f64");
+            }
             let gy = values(&Tensor::<5>::random(
                 [batch, cout, exact.len() / (batch * cout), 1, 1],
                 Distribution::Uniform(-1.0, 1.0),
@@ -802,8 +837,10 @@ mod tests {
     #[ignore = "timing, run by hand"]
     fn direct_against_im2col_timing() {
         let dev = Device::flex();
-        let shapes: [Case; 13] = [
+        let shapes: [Case; 15] = [
             (5, 6, 8, [8, 64, 64], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            (5, 8, 16, [8, 64, 64], [3, 3, 3], [1, 2, 2], [1; 3], [1; 3]),
+            (5, 16, 32, [8, 32, 32], [3, 3, 3], [1, 2, 2], [1; 3], [1; 3]),
             (5, 8, 8, [8, 64, 64], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
             (6, 3, 64, [1, 64, 64], [1, 3, 3], [1; 3], [1; 3], [0, 1, 1]),
             (6, 64, 64, [1, 64, 64], [1, 3, 3], [1; 3], [1; 3], [0, 1, 1]),
@@ -836,26 +873,8 @@ mod tests {
             (5, 32, 16, [16, 64, 112], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
         ];
         for (batch, cin, cout, input, kernel, stride, dilation, padding) in shapes {
-            let s = ConvShape {
-                batch,
-                cin,
-                cout,
-                input,
-                kernel,
-                stride,
-                dilation,
-                padding,
-            };
-            let x = values(&Tensor::<5>::random(
-                [batch, cin, input[0], input[1], input[2]],
-                Distribution::Uniform(-1.0, 1.0),
-                &dev,
-            ));
-            let w = values(&Tensor::<5>::random(
-                [cout, cin, kernel[0], kernel[1], kernel[2]],
-                Distribution::Uniform(-1.0, 1.0),
-                &dev,
-            ));
+            let s = shape((batch, cin, cout, input, kernel, stride, dilation, padding));
+            let (x, w) = inputs(&s, &dev);
             let time = |f: &dyn Fn() -> Vec<f32>| {
                 let mut v: Vec<f64> = (0..15)
                     .map(|_| {
@@ -867,8 +886,9 @@ mod tests {
                 v.sort_by(f64::total_cmp);
                 v[7]
             };
+            let [od, oh, ow] = s.output();
             let gy = values(&Tensor::<5>::random(
-                [batch, cout, input[0], input[1], input[2]],
+                [batch, cout, od, oh, ow],
                 Distribution::Uniform(-1.0, 1.0),
                 &dev,
             ));
@@ -880,7 +900,7 @@ mod tests {
                 d += time(&|| grad_weight_direct(&s, &x, &gy));
             }
             println!(
-                "{cin}->{cout} {input:?} dil {dilation:?}: forward im2col {:.2} ms, direct {:.2} ms; weight gradient {:.2} / {:.2} ms",
+                "{cin}->{cout} {input:?} stride {stride:?} dil {dilation:?}: forward im2col {:.2} ms, direct {:.2} ms; weight gradient {:.2} / {:.2} ms",
                 a / 3.0,
                 b / 3.0,
                 c / 3.0,
@@ -956,23 +976,19 @@ mod tests {
     #[test]
     fn conv3d_and_its_gradients_match_burn() {
         let dev = Device::flex().autodiff();
-        let direct = |(batch, cin, cout, input, kernel, stride, dilation, padding): Case| {
-            let s = ConvShape {
-                batch,
-                cin,
-                cout,
-                input,
-                kernel,
-                stride,
-                dilation,
-                padding,
-            };
+        let direct = |case: Case| {
+            let s = shape(case);
             (direct_applies(&s), direct_grad_weight_applies(&s))
         };
         assert_eq!(
             direct(CASES[0]),
             (true, true),
             "the direct kernels are covered"
+        );
+        assert_eq!(
+            direct(CASES[1]),
+            (true, true),
+            "the direct kernels are covered with stride 2"
         );
         for (batch, cin, cout, input, kernel, stride, dilation, padding) in CASES {
             let r = |shape: [usize; 5]| {

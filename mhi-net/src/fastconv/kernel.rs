@@ -493,6 +493,34 @@ impl Padded {
         out
     }
 
+    /// Writes the job's buffer `wide` (`cout` rows of `q` columns) to its output rows in `out`
+    /// (the whole `batch × cout × D' × H' × W'` output), adding the bias; the dropped columns
+    /// are left out.
+    fn write_rows(
+        &self,
+        s: &ConvShape,
+        job: (usize, usize, usize, usize, usize),
+        wide: &[f32],
+        q: usize,
+        bias: Option<&[f32]>,
+        out: SharedMut,
+    ) {
+        let sp: usize = s.output().iter().product();
+        let b = job.0;
+        self.for_each_row(s, job, |at, col, n| {
+            for co in 0..s.cout {
+                let add = bias.map_or(0.0, |bias| bias[co]);
+                let src = &wide[co * q + col..co * q + col + n];
+                // SAFETY: the job writes only the output positions of its own rows, of batch
+                // item b; `out` covers the whole output.
+                let row = unsafe {
+                    std::slice::from_raw_parts_mut(out.0.add((b * s.cout + co) * sp + at), n)
+                };
+                row.iter_mut().zip(src).for_each(|(r, v)| *r = v + add);
+            }
+        });
+    }
+
     /// Calls `f(output index, column of the job's buffer, length)` for each output row of the
     /// job, output indices within the batch item's channel.
     fn for_each_row(
@@ -602,20 +630,7 @@ pub fn forward_direct_gemm(s: &ConvShape, x: &[f32], w: &[f32], bias: Option<&[f
                     )
                 }
             });
-            let d = dst;
-            let b = job.0;
-            p.for_each_row(s, job, |at, col, n| {
-                for co in 0..s.cout {
-                    let add = bias.map_or(0.0, |bias| bias[co]);
-                    let src = &wide[co * q + col..co * q + col + n];
-                    // SAFETY: the job writes only the output positions of its own rows, of
-                    // batch item b.
-                    let row = unsafe {
-                        std::slice::from_raw_parts_mut(d.0.add((b * s.cout + co) * sp + at), n)
-                    };
-                    row.iter_mut().zip(src).for_each(|(r, v)| *r = v + add);
-                }
-            });
+            p.write_rows(s, job, wide, q, bias, dst);
         });
     out
 }
@@ -887,20 +902,7 @@ pub mod blocked {
                         }
                     }
                 }
-                let d = dst;
-                let b = job.0;
-                p.for_each_row(s, job, |at, col, n| {
-                    for co in 0..s.cout {
-                        let add = bias.map_or(0.0, |bias| bias[co]);
-                        let src = &wide[co * q + col..co * q + col + n];
-                        // SAFETY: the job writes only the output positions of its own rows, of
-                        // batch item b.
-                        let row = unsafe {
-                            std::slice::from_raw_parts_mut(d.0.add((b * s.cout + co) * sp + at), n)
-                        };
-                        row.iter_mut().zip(src).for_each(|(r, v)| *r = v + add);
-                    }
-                });
+                p.write_rows(s, job, wide, q, bias, dst);
             },
         );
         out

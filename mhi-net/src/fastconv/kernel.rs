@@ -341,7 +341,7 @@ struct Padded {
     data: Vec<f32>,
     /// Phase image row length.
     wq: usize,
-    /// Phases per padded row (`sx`) and per padded column (`sy`).
+    /// Phase counts `[sy, sx]`: along the padded columns (rows' phases) and along the rows.
     phases: [usize; 2],
     /// Stride between depth slices of one phase.
     slice: usize,
@@ -850,28 +850,26 @@ pub mod blocked {
         let nv = if s.cout.is_multiple_of(16) { 2 } else { 1 };
         let (lanes, p_len) = (8 * nv, if nv == 2 { 6 } else { 12 });
         let kk: usize = s.kernel.iter().product();
-        // Weights per block of output channels, as vectors: [block][kernel index][ci][NV].
+        // Weights per block of output channels, as vectors: [block][kernel index][ci][NV], the
+        // vector of block ob, part v holding output channels ob · lanes + 8v … + 8.
         let blocks = s.cout / lanes;
-        let mut wv = vec![0.0f32; w.len()];
+        let mut wv = Vec::with_capacity(w.len() / 8);
         for ob in 0..blocks {
             for k in 0..kk {
                 for ci in 0..s.cin {
-                    for l in 0..lanes {
-                        let co = ob * lanes + l;
-                        wv[((ob * kk + k) * s.cin + ci) * lanes + l] =
-                            w[(co * s.cin + ci) * kk + k];
+                    for v in 0..nv {
+                        let lane = |l: usize| {
+                            let co = ob * lanes + 8 * v + l;
+                            w[(co * s.cin + ci) * kk + k]
+                        };
+                        let c: [f32; 8] = std::array::from_fn(lane);
+                        // SAFETY: a plain transmute of 8 floats into a vector (same size, any
+                        // bits).
+                        wv.push(unsafe { std::mem::transmute::<[f32; 8], __m256>(c) });
                     }
                 }
             }
         }
-        let wv: Vec<__m256> = wv
-            .chunks_exact(8)
-            .map(|c| {
-                let c: [f32; 8] = c.try_into().expect("8 lanes");
-                // SAFETY: a plain transmute of 8 floats into a vector (same size, any bits).
-                unsafe { std::mem::transmute::<[f32; 8], __m256>(c) }
-            })
-            .collect();
         let per_block = kk * s.cin * nv;
         let p = Padded::new(s, x);
         let q = p.q + p_len;
@@ -893,6 +891,9 @@ pub mod blocked {
                                     tile::<1, 12>(&p, &taps, g, s.cin, wb, tmp);
                                 }
                             }
+                            // The last tile of a segment spills up to p_len − 1 columns into
+                            // the next segment's, which its own tiles overwrite later (and
+                            // into the buffer's p_len spare columns after the last segment).
                             for i in 0..p_len {
                                 for l in 0..lanes {
                                     wide[(ob * lanes + l) * q + col + g + i] =

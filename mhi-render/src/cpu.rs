@@ -189,6 +189,10 @@ pub fn heuristic_weights_for(
 ) -> Vec<f32> {
     let n = normals.len();
     let (w, h) = (target.width as usize, target.height as usize);
+    if heuristic == BlendHeuristic::Avg {
+        // The same value `weights_into` gives every normal, without a ray per pixel.
+        return vec![(1.0 / n.max(1) as f64) as f32; n * w * h];
+    }
     let r = reference.from_other(target).rotation();
     // Normals in the target frame, normalised once.
     let nt: Vec<DVec3> = normals
@@ -573,31 +577,34 @@ fn render_rows_with(
         share,
         keep,
     };
-    let rows: Vec<(Vec<f32>, Vec<f32>, usize)> =
-        (0..th).into_par_iter().map(|y| ctx.row(y)).collect();
+    // Rows are written in place: the blended image's and, when kept, each multi-normal
+    // image's row y.
     let mut image = Rgb32FImage::new(target.width, target.height);
     let mut multi_normal = if keep {
         vec![Rgb32FImage::new(target.width, target.height); n]
     } else {
         Vec::new()
     };
+    let row_len = (tw * 3).max(1);
+    let mut mni_rows: Vec<Vec<&mut [f32]>> = (0..th).map(|_| Vec::with_capacity(n)).collect();
+    for m in &mut multi_normal {
+        for (y, r) in m.as_mut().chunks_mut(row_len).enumerate() {
+            mni_rows[y].push(r);
+        }
+    }
+    let done: usize = image
+        .as_mut()
+        .par_chunks_mut(row_len)
+        .zip(mni_rows.par_iter_mut())
+        .enumerate()
+        .map(|(y, (row, mni))| ctx.row(y, row, mni))
+        .sum();
     let visible_samples = px * (0..n * d).filter(|k| hs[*k].is_some()).count();
-    let done: usize = rows.iter().map(|r| r.2).sum();
     stats.samples = if visible_samples > 0 {
         done as f32 / visible_samples as f32
     } else {
         1.0
     };
-    for (y, (row, mni, _)) in rows.iter().enumerate() {
-        let dst = &mut image.as_mut()[y * tw * 3..(y + 1) * tw * 3];
-        dst.copy_from_slice(row);
-        if keep {
-            for (i, m) in multi_normal.iter_mut().enumerate() {
-                m.as_mut()[y * tw * 3..(y + 1) * tw * 3]
-                    .copy_from_slice(&mni[i * tw * 3..(i + 1) * tw * 3]);
-            }
-        }
-    }
     Ok(Rendered {
         image,
         multi_normal,
@@ -641,11 +648,12 @@ struct RowContext<'a> {
 }
 
 impl RowContext<'_> {
-    /// Target row `y`: blended RGB (W·3), the N multi-normal rows (N·W·3) if kept, and the
-    /// samples composited. Compiled twice: for the baseline x86-64 and, picked at run time
-    /// where the CPU has them, with AVX2 and FMA (the same arithmetic: Rust never fuses a
+    /// Target row `y`: the blended RGB row (W·3, zero on entry) into `out`, each kept
+    /// multi-normal row into `mni` (one slice a normal, or none); returns the samples
+    /// composited. Compiled twice: for the baseline x86-64 and, picked at run time where the
+    /// CPU has them, with AVX2 and FMA (the same arithmetic: Rust never fuses a
     /// multiply and an add on its own, so both give the same bits).
-    fn row(&self, y: usize) -> (Vec<f32>, Vec<f32>, usize) {
+    fn row(&self, y: usize, out: &mut [f32], mni: &mut [&mut [f32]]) -> usize {
         #[cfg(target_arch = "x86_64")]
         if self.rows == Rows::Fastest
             && std::arch::is_x86_feature_detected!("avx2")
@@ -653,15 +661,15 @@ impl RowContext<'_> {
         {
             // SAFETY: `row_avx2` only needs AVX2 and FMA, which the CPU was just found to have.
             #[allow(unsafe_code)]
-            return unsafe { self.row_avx2(y) };
+            return unsafe { self.row_avx2(y, out, mni) };
         }
-        self.row_generic(y)
+        self.row_generic(y, out, mni)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    fn row_avx2(&self, y: usize) -> (Vec<f32>, Vec<f32>, usize) {
-        self.row_generic(y)
+    fn row_avx2(&self, y: usize, out: &mut [f32], mni: &mut [&mut [f32]]) -> usize {
+        self.row_generic(y, out, mni)
     }
 
     /// Colour of layer `k`, read straight from the images' RGB rows (three floats per texel):
@@ -675,7 +683,7 @@ impl RowContext<'_> {
     }
 
     #[inline(always)]
-    fn row_generic(&self, y: usize) -> (Vec<f32>, Vec<f32>, usize) {
+    fn row_generic(&self, y: usize, out: &mut [f32], mni: &mut [&mut [f32]]) -> usize {
         let (mhi, hs, active, tiles, weights) =
             (self.mhi, self.hs, self.active, self.tiles, self.weights);
         let (n, d, tw) = (mhi.n(), mhi.d(), self.width);
@@ -688,12 +696,6 @@ impl RowContext<'_> {
         let tiles_x = tw.div_ceil(TILE_W);
         let color_of = |k: usize| self.color_of(k);
         let stop_of = |tile: &TilePlan| stop_at(tile, eps, share);
-        let mut out = vec![0.0_f32; tw * 3];
-        let mut mni = if keep {
-            vec![0.0_f32; n * tw * 3]
-        } else {
-            Vec::new()
-        };
         let mut c = vec![0.0_f32; tw * 3];
         let mut t = vec![1.0_f32; tw];
         let (mut sxs, mut sys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
@@ -820,10 +822,10 @@ impl RowContext<'_> {
                 }
             }
             if keep {
-                mni[i * tw * 3..(i + 1) * tw * 3].copy_from_slice(&c);
+                mni[i].copy_from_slice(&c);
             }
         }
-        (out, mni, samples)
+        samples
     }
 }
 

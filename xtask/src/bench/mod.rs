@@ -71,6 +71,11 @@ pub struct BenchArgs {
     /// root such as ../shared/data/real/re10k-3 gives a real scene).
     #[arg(long, default_value = "data/synth")]
     pub data: PathBuf,
+    /// Also time the pruned render on this trained run's MHI of the same triplet, as `eval` and
+    /// `render` render it: the N multi-normal images, each within the budget, before the
+    /// blending network (e.g. models/mhi-n5d16).
+    #[arg(long)]
+    pub run: Option<PathBuf>,
     /// Weights cache for --train-step's VGG loss (default: $MHI_CACHE, else ~/.cache/mhi).
     #[arg(long)]
     pub cache: Option<PathBuf>,
@@ -141,17 +146,24 @@ fn soft_exact_and_pruned() -> (RenderOptions<'static>, RenderOptions<'static>) {
 /// Exact against pruned render time of a real MHI.
 #[derive(serde::Serialize)]
 struct RealPruning {
+    /// `sweep` or the trained run's path.
+    mhi: String,
     scene: String,
     size: (u32, u32),
     exact_ms: f64,
     pruned_ms: f64,
+    /// Median of the paired exact / pruned ratios.
+    speedup: f64,
     layers_pruned: usize,
     normals_pruned: usize,
     composited: f32,
+    samples: f32,
     bound: f32,
 }
 
-fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<RealPruning> {
+/// The sweep MHI of the first test triplet of `--data` (and, with `--run`, the trained model's
+/// MHI of the same triplet), each rendered exactly and with the default plan.
+fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<Vec<RealPruning>> {
     if a.data == std::path::Path::new("data/synth") {
         crate::common::ensure_synthetic(&a.data)?;
     }
@@ -171,9 +183,30 @@ fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<
         .iter()
         .find(|s| s.name == t.sequence)
         .context("triplet sequence")?;
-    let size = crate::common::size_for(mhi_data::check_same_size(&[&seq.frames[0]])?, a.size);
+    let model = match &a.run {
+        Some(run) => Some(
+            mhi_net::Model::load(run, burn::tensor::Device::flex())
+                .with_context(|| format!("--run {}: loading the trained run", run.display()))?,
+        ),
+        None => None,
+    };
+    let mut size = crate::common::size_for(mhi_data::check_same_size(&[&seq.frames[0]])?, a.size);
+    if let Some(m) = &model {
+        // The U-Nets need sides divisible by the model's multiple.
+        let k = m.config().size_multiple().max(1) as u32;
+        size = (size.0 / k * k, size.1 / k * k);
+        m.check_size(size.0, size.1)?;
+    }
     let load = |i: usize| mhi_data::load_frame(&seq.frames[i], Some(size), mhi_data::Fit::Stretch);
     let (rf, sf, tf) = (load(t.reference)?, load(t.source)?, load(t.target)?);
+    let scene = format!(
+        "{}/{} frames {}-{}-{}",
+        a.data.display(),
+        seq.name,
+        t.reference,
+        t.source,
+        t.target
+    );
     let synth = mhi_net::ViewSynthesis::new(mhi_net::MhiSource::Sweep {
         normals: a.grid.normal_set()?,
         depths: a.grid.depths()?,
@@ -181,31 +214,85 @@ fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<
     });
     let (mhi, _) = synth.mhi(&rf, &sf)?;
     let (soft, pruned_opts) = soft_exact_and_pruned();
-    let stats = render(&mhi, &tf.camera, &pruned_opts)?.stats;
-    let (exact_ms, pruned_ms) = pool.install(|| {
-        let e = median_ms(a.runs, || {
-            std::hint::black_box(render(&mhi, &tf.camera, &soft).expect("valid scene"));
-        });
-        let p = median_ms(a.runs, || {
-            std::hint::black_box(render(&mhi, &tf.camera, &pruned_opts).expect("valid scene"));
-        });
-        (e, p)
+    let mut out = vec![time_pruning(
+        "sweep".into(),
+        scene.clone(),
+        size,
+        a.runs,
+        pool,
+        &mhi,
+        &tf.camera,
+        (&soft, &pruned_opts),
+    )?];
+    if let (Some(m), Some(run)) = (&model, &a.run) {
+        let (mhi, _) = mhi_net::ViewSynthesis::new(mhi_net::MhiSource::Learned(m)).mhi(&rf, &sf)?;
+        // As `eval` and `render` render a learned MHI: every multi-normal image kept.
+        let mni = |prune| RenderOptions {
+            blend: Blend::Heuristic(BlendHeuristic::Avg),
+            prune,
+            keep_multi_normal: true,
+        };
+        out.push(time_pruning(
+            run.display().to_string(),
+            scene,
+            size,
+            a.runs,
+            pool,
+            &mhi,
+            &tf.camera,
+            (&mni(Prune::NONE), &mni(Prune::DEFAULT)),
+        )?);
+    }
+    Ok(out)
+}
+
+/// Median exact and pruned render times of one MHI and view.
+#[allow(clippy::too_many_arguments)]
+fn time_pruning(
+    what: String,
+    scene: String,
+    size: (u32, u32),
+    runs: usize,
+    pool: &rayon::ThreadPool,
+    mhi: &Mhi,
+    camera: &Camera,
+    (exact, pruned): (&RenderOptions<'_>, &RenderOptions<'_>),
+) -> anyhow::Result<RealPruning> {
+    let stats = render(mhi, camera, pruned)?.stats;
+    // Exact and pruned alternate, so that a shared machine's swings hit both alike; the
+    // speed-up is the median of the paired ratios.
+    let (exact_ms, pruned_ms, speedup) = pool.install(|| {
+        let time = |o: &RenderOptions<'_>| {
+            let t0 = Instant::now();
+            std::hint::black_box(render(mhi, camera, o).expect("valid scene"));
+            t0.elapsed().as_secs_f64() * 1e3
+        };
+        time(exact);
+        time(pruned);
+        let (mut e, mut p, mut r) = (Vec::new(), Vec::new(), Vec::new());
+        for _ in 0..runs.max(1) {
+            let (te, tp) = (time(exact), time(pruned));
+            e.push(te);
+            p.push(tp);
+            r.push(te / tp);
+        }
+        let median = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        (median(e), median(p), median(r))
     });
     Ok(RealPruning {
-        scene: format!(
-            "{}/{} frames {}-{}-{}",
-            a.data.display(),
-            seq.name,
-            t.reference,
-            t.source,
-            t.target
-        ),
+        mhi: what,
+        scene,
         size,
         exact_ms,
         pruned_ms,
+        speedup,
         layers_pruned: stats.layers_pruned,
         normals_pruned: stats.normals_pruned,
         composited: stats.composited,
+        samples: stats.samples,
         bound: stats.bound,
     })
 }
@@ -370,19 +457,23 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
     println!(
         "  with the default render plan (pruning):    {pruned_ms:8.1} ms (random alphas: only the transmittance stop applies)"
     );
-    println!(
-        "  sweep MHI of {} at {}x{}: exact {:.1} ms, pruned {:.1} ms ({:.2}x; {} layers and {} normals left out everywhere, {:.0} % of the tile-layer pairs composited, bound {:.5})",
-        real.scene,
-        real.size.0,
-        real.size.1,
-        real.exact_ms,
-        real.pruned_ms,
-        real.exact_ms / real.pruned_ms,
-        real.layers_pruned,
-        real.normals_pruned,
-        100.0 * real.composited,
-        real.bound
-    );
+    for r in &real {
+        println!(
+            "  {} MHI of {} at {}x{}: exact {:.1} ms, pruned {:.1} ms (paired {:.2}x; {} layers and {} normals left out everywhere, {:.0} % of the tile-layer pairs and {:.0} % of the samples composited, bound {:.5})",
+            r.mhi,
+            r.scene,
+            r.size.0,
+            r.size.1,
+            r.exact_ms,
+            r.pruned_ms,
+            r.speedup,
+            r.layers_pruned,
+            r.normals_pruned,
+            100.0 * r.composited,
+            100.0 * r.samples,
+            r.bound
+        );
+    }
     println!("  per-layer colour (the peer's layout):      {per_layer_ms:8.1} ms");
     println!(
         "  memory floor: {:.1} MB read once at {:.1} GB/s = {floor_ms:.1} ms ({:.1}x above it)",

@@ -41,7 +41,9 @@ pub enum Blend<'a> {
 ///   bounded per layer;
 /// - **transmittance** — a pixel stops compositing once its remaining transmittance is within
 ///   its share, plus whatever layer share its tile did not spend: what lies behind adds at most
-///   that much. Both passes of a tile's row run over the span of pixels still open.
+///   that much. Adjacent tiles of a row that composite the same layers are one run (an exact
+///   render's rows are one run each), which stops where its most demanding tile stops; both
+///   passes of a run run over the span of its pixels still open.
 ///
 /// The farthest layer of each normal is never skipped, and at least one normal is kept.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -711,13 +713,23 @@ impl RowContext<'_> {
             }
             c.fill(0.0);
             t.fill(1.0);
-            for (tile, x_start) in band.iter().zip((0..tw).step_by(TILE_W)) {
-                // The span of the tile's row still open (transmittance above the stop):
+            // Adjacent tiles that composite the same layers are one run (an exact render's
+            // rows are one run each); it stops where its most demanding tile stops.
+            let mut k = 0;
+            while k < tiles_x {
+                let layers = &band[k].layers[i];
+                let mut eps = stop_of(&band[k]);
+                let mut k_end = k + 1;
+                while k_end < tiles_x && band[k_end].layers[i] == *layers {
+                    eps = eps.min(stop_of(&band[k_end]));
+                    k_end += 1;
+                }
+                // The span of the run's row still open (transmittance above the stop):
                 // pixels that stopped stay stopped, so it only shrinks, and both passes
                 // below run over it alone.
-                let (mut x0, mut x1) = (x_start, (x_start + TILE_W).min(tw));
-                let eps = stop_of(tile);
-                for &j in &tile.layers[i] {
+                let (mut x0, mut x1) = (k * TILE_W, (k_end * TILE_W).min(tw));
+                k = k_end;
+                for &j in layers {
                     let (h, far) = (hs[i * d + j].unwrap_or([0.0; 9]), j == 0);
                     let alpha = mhi.alpha_layer(i, j);
                     let color = color_of(i * d + j);

@@ -91,7 +91,32 @@ impl Ctx<'_> {
             let d = model.depths().len();
             let synth = ViewSynthesis::new(MhiSource::Learned(model));
             let (mhi, t) = synth.mhi(rf, sf)?;
-            let mn = multi_normal(&mhi, &tf.camera, a.prune())?;
+            // With the Soft blend's pruned-against-exact check, the multi-normal images are
+            // rendered both ways, alternately (the pruned ones are scored).
+            let check = self.wants(Method::Soft) && a.prune().budget > 0.0 && !is_mpi;
+            let (mn, exact_mn) = if check {
+                let ((e, e_ms), (p, p_ms)) = paired(
+                    || {
+                        let m = multi_normal(&mhi, &tf.camera, Prune::NONE)?;
+                        let ms = m.render_ms;
+                        Ok((m, ms))
+                    },
+                    || {
+                        let m = multi_normal(&mhi, &tf.camera, a.prune())?;
+                        let ms = m.render_ms;
+                        Ok((m, ms))
+                    },
+                )?;
+                (
+                    mhi_net::MultiNormal {
+                        render_ms: p_ms,
+                        ..p
+                    },
+                    Some((e, e_ms)),
+                )
+            } else {
+                (multi_normal(&mhi, &tf.camera, a.prune())?, None)
+            };
             let base = Times {
                 volume_ms: t.volume_ms,
                 network_ms: t.network_ms,
@@ -121,12 +146,11 @@ impl Ctx<'_> {
                 let b = blend(BlendChoice::Heuristic(h))?;
                 let weights = b.weights.clone();
                 let mut o = blended(name, n, d, b, base);
-                if which == Method::Soft && a.prune().budget > 0.0 {
+                if let (Method::Soft, Some((e, e_ms))) = (which, &exact_mn) {
                     // The same MHI's multi-normal images rendered exactly, Soft-blended.
-                    let e = multi_normal(&mhi, &tf.camera, Prune::NONE)?;
                     o.exact = Some(ExactCheck {
                         image: combine(&e.images, &weights),
-                        render_ms: e.render_ms,
+                        render_ms: *e_ms,
                         stats: mn.stats,
                         needed: mhi_render::needed_share(
                             &mhi,
@@ -209,11 +233,11 @@ pub(super) fn render_soft(
         )?;
         Ok((r, ms(t0)))
     };
-    let (exact, exact_ms) = go(Prune::NONE)?;
     if prune.budget <= 0.0 {
+        let (exact, exact_ms) = go(Prune::NONE)?;
         return Ok((exact.image, exact_ms, None));
     }
-    let (pruned, pruned_ms) = go(prune)?;
+    let ((exact, exact_ms), (pruned, pruned_ms)) = paired(|| go(Prune::NONE), || go(prune))?;
     Ok((
         pruned.image,
         pruned_ms,
@@ -224,4 +248,35 @@ pub(super) fn render_soft(
             stats: pruned.stats,
         }),
     ))
+}
+
+/// Renders of one MHI and view timed exactly and pruned, alternately, this many times each: a
+/// shared machine's swings then hit both alike, and the medians are reported.
+pub(super) const PAIRED_RUNS: usize = 3;
+
+/// Run `exact` and `pruned` (each giving its result and milliseconds) alternately
+/// [`PAIRED_RUNS`] times; their first results with the median times.
+pub(super) fn paired<T>(
+    mut exact: impl FnMut() -> anyhow::Result<(T, f64)>,
+    mut pruned: impl FnMut() -> anyhow::Result<(T, f64)>,
+) -> anyhow::Result<((T, f64), (T, f64))> {
+    let (mut first_e, mut first_p) = (None, None);
+    let (mut te, mut tp) = (Vec::new(), Vec::new());
+    for _ in 0..PAIRED_RUNS {
+        let (e, ms_e) = exact()?;
+        let (p, ms_p) = pruned()?;
+        te.push(ms_e);
+        tp.push(ms_p);
+        first_e.get_or_insert(e);
+        first_p.get_or_insert(p);
+    }
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let (e, p) = (
+        first_e.context("no exact render")?,
+        first_p.context("no pruned render")?,
+    );
+    Ok(((e, median(te)), (p, median(tp))))
 }

@@ -41,9 +41,10 @@ pub enum Blend<'a> {
 ///   bounded per layer;
 /// - **transmittance** — a pixel stops compositing once its remaining transmittance is within
 ///   its share, plus whatever layer share its tile did not spend: what lies behind adds at most
-///   that much. Adjacent tiles of a row that composite the same layers are one run (an exact
-///   render's rows are one run each), which stops where its most demanding tile stops; both
-///   passes of a run run over the span of its pixels still open.
+///   that much. A row composites layer by layer, near to far; adjacent tiles that keep the
+///   layer form one run (an exact render's runs are whole rows), which stops where its most
+///   demanding tile stops, over the span from its first tile's first open pixel to its last
+///   tile's last.
 ///
 /// The farthest layer of each normal is never skipped, and at least one normal is kept.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -707,29 +708,43 @@ impl RowContext<'_> {
         let mut samples = 0_usize;
         let v = y as f32 + 0.5;
         let band = &tiles[(y / TILE_H) * tiles_x..][..tiles_x];
+        let tile_stop: Vec<f32> = band.iter().map(stop_of).collect();
+        // Per tile of the row: the span of its pixels still open and how far its layer list
+        // (near to far) has been walked.
+        let mut open = vec![(0_usize, 0_usize); tiles_x];
+        let mut next = vec![0_usize; tiles_x];
         for i in 0..n {
             if !active[i] {
                 continue;
             }
             c.fill(0.0);
             t.fill(1.0);
-            // Adjacent tiles that composite the same layers are one run (an exact render's
-            // rows are one run each); it stops where its most demanding tile stops.
-            let mut k = 0;
-            while k < tiles_x {
-                let layers = &band[k].layers[i];
-                let mut eps = stop_of(&band[k]);
-                let mut k_end = k + 1;
-                while k_end < tiles_x && band[k_end].layers[i] == *layers {
-                    eps = eps.min(stop_of(&band[k_end]));
-                    k_end += 1;
-                }
-                // The span of the run's row still open (transmittance above the stop):
-                // pixels that stopped stay stopped, so it only shrinks, and both passes
-                // below run over it alone.
-                let (mut x0, mut x1) = (k * TILE_W, (k_end * TILE_W).min(tw));
-                k = k_end;
-                for &j in layers {
+            // Layers near to far across the row (each pixel still sees its layers in
+            // front-to-back order): adjacent tiles that composite layer j form one run, which
+            // stops where its most demanding tile stops. An exact render's runs are whole rows.
+            for (o, x_start) in open.iter_mut().zip((0..tw).step_by(TILE_W)) {
+                *o = (x_start, (x_start + TILE_W).min(tw));
+            }
+            next.fill(0);
+            for j in (0..d).rev() {
+                let keeps = |k: usize, next: &[usize], open: &[(usize, usize)]| {
+                    open[k].0 < open[k].1 && band[k].layers[i].get(next[k]) == Some(&j)
+                };
+                let mut k = 0;
+                while k < tiles_x {
+                    if !keeps(k, &next, &open) {
+                        k += 1;
+                        continue;
+                    }
+                    let mut eps = tile_stop[k];
+                    let mut k_end = k + 1;
+                    while k_end < tiles_x && keeps(k_end, &next, &open) {
+                        eps = eps.min(tile_stop[k_end]);
+                        k_end += 1;
+                    }
+                    // From the first open pixel of the run's first tile to the last of its
+                    // last: pixels in between that stopped are passed over in pass 2.
+                    let (x0, x1) = (open[k].0, open[k_end - 1].1);
                     let (h, far) = (hs[i * d + j].unwrap_or([0.0; 9]), j == 0);
                     let alpha = mhi.alpha_layer(i, j);
                     let color = color_of(i * d + j);
@@ -812,19 +827,23 @@ impl RowContext<'_> {
                         cx[2] += ta * col[2];
                         *tx -= ta;
                     }
-                    if stop {
-                        while x0 < x1 && t[x0] <= eps {
-                            x0 += 1;
-                        }
-                        while x1 > x0 && t[x1 - 1] <= eps {
-                            x1 -= 1;
-                        }
-                        // Every pixel of the tile's row is opaque: farther layers cannot
-                        // show.
-                        if x0 == x1 {
-                            break;
+                    for kk in k..k_end {
+                        next[kk] += 1;
+                        if stop {
+                            // The span of the tile's row still open (transmittance above
+                            // its stop): pixels that stopped stay stopped, so it only
+                            // shrinks; empty, farther layers cannot show there.
+                            let (mut a, mut b) = open[kk];
+                            while a < b && t[a] <= tile_stop[kk] {
+                                a += 1;
+                            }
+                            while b > a && t[b - 1] <= tile_stop[kk] {
+                                b -= 1;
+                            }
+                            open[kk] = (a, b);
                         }
                     }
+                    k = k_end;
                 }
             }
             let wrow = &weights[i * px + y * tw..i * px + (y + 1) * tw];

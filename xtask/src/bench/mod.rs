@@ -87,15 +87,21 @@ pub struct BenchArgs {
 /// Median wall-clock milliseconds of `runs` calls of `f`, after one warm-up call.
 pub fn median_ms(runs: usize, mut f: impl FnMut()) -> f64 {
     f(); // warm-up
-    let mut t: Vec<f64> = (0..runs.max(1))
-        .map(|_| {
-            let t0 = Instant::now();
-            f();
-            t0.elapsed().as_secs_f64() * 1e3
-        })
-        .collect();
-    t.sort_by(f64::total_cmp);
-    t[t.len() / 2]
+    median(
+        (0..runs.max(1))
+            .map(|_| {
+                let t0 = Instant::now();
+                f();
+                t0.elapsed().as_secs_f64() * 1e3
+            })
+            .collect(),
+    )
+}
+
+/// The median of `v` (the upper one of an even count; NaN for an empty `v`).
+pub fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
 /// The peer's scene: K = [[W/2, 0, W/2], [0, W/2, H/2]], ref_from_tgt = (rot((0.2, 1, 0.1), 4°),
@@ -276,10 +282,6 @@ fn time_pruning(
             p.push(tp);
             r.push(te / tp);
         }
-        let median = |mut v: Vec<f64>| {
-            v.sort_by(f64::total_cmp);
-            v[v.len() / 2]
-        };
         (median(e), median(p), median(r))
     });
     Ok(RealPruning {

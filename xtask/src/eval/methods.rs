@@ -95,18 +95,12 @@ impl Ctx<'_> {
             // rendered both ways, alternately (the pruned ones are scored).
             let check = self.wants(Method::Soft) && a.prune().budget > 0.0 && !is_mpi;
             let (mn, exact_mn) = if check {
-                let ((e, e_ms), (p, p_ms)) = paired(
-                    || {
-                        let m = multi_normal(&mhi, &tf.camera, Prune::NONE)?;
-                        let ms = m.render_ms;
-                        Ok((m, ms))
-                    },
-                    || {
-                        let m = multi_normal(&mhi, &tf.camera, a.prune())?;
-                        let ms = m.render_ms;
-                        Ok((m, ms))
-                    },
-                )?;
+                let timed = |prune| -> anyhow::Result<_> {
+                    let m = multi_normal(&mhi, &tf.camera, prune)?;
+                    let ms = m.render_ms;
+                    Ok((m, ms))
+                };
+                let ((e, e_ms), (p, p_ms)) = paired(|| timed(Prune::NONE), || timed(a.prune()))?;
                 (
                     mhi_net::MultiNormal {
                         render_ms: p_ms,
@@ -270,10 +264,7 @@ pub(super) fn paired<T>(
         first_e.get_or_insert(e);
         first_p.get_or_insert(p);
     }
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
+    let median = crate::bench::median;
     let (e, p) = (
         first_e.context("no exact render")?,
         first_p.context("no pruned render")?,

@@ -699,7 +699,9 @@ impl RowContext<'_> {
         let tiles_x = tw.div_ceil(TILE_W);
         let color_of = |k: usize| self.color_of(k);
         let stop_of = |tile: &TilePlan| stop_at(tile, eps, share);
-        let mut c = vec![0.0_f32; tw * 3];
+        // The normal's row so far: colour (RGB and an unused fourth float a pixel) and
+        // transmittance.
+        let mut c = vec![0.0_f32; tw * 4];
         let mut t = vec![1.0_f32; tw];
         let (mut sxs, mut sys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
         let (mut fxs, mut fys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
@@ -789,42 +791,47 @@ impl RowContext<'_> {
                             u32::MAX
                         };
                     }
-                    // Pass 2: bilinear fetches and front-to-back compositing.
-                    for ((x, tx), cx) in t[x0..x1]
+                    // Pass 2: bilinear fetches and front-to-back compositing. Zipped slices
+                    // and one window of alpha and of colour per sample, so that the loop
+                    // checks two bounds a sample instead of a dozen.
+                    let run = x0..x1;
+                    let pixels = t[run.clone()]
                         .iter_mut()
-                        .enumerate()
-                        .map(|(k, tx)| (x0 + k, tx))
-                        .zip(c[3 * x0..3 * x1].chunks_exact_mut(3))
-                    {
+                        .zip(c[4 * x0..4 * x1].as_chunks_mut::<4>().0)
+                        .zip(&idx[run.clone()])
+                        .zip(fxs[run.clone()].iter().zip(&fys[run.clone()]))
+                        .zip(sxs[run.clone()].iter().zip(&sys[run]));
+                    for ((((tx, cx), &ix), (&fx, &fy)), (&sx, &sy)) in pixels {
                         if stop && *tx <= eps {
                             continue;
                         }
                         samples += 1;
-                        let (a, col) = if idx[x] != u32::MAX {
-                            let i = idx[x] as usize;
-                            let w = bilinear::weights(fxs[x], fys[x]);
-                            let (a_top, a_bot) = (&alpha[i..i + 2], &alpha[i + rw..i + rw + 2]);
-                            let (c_top, c_bot) = (
-                                &color[3 * i..3 * i + 6],
-                                &color[3 * (i + rw)..3 * (i + rw) + 6],
-                            );
-                            let [a] =
-                                bilinear::mix(&w, [[a_top[0]], [a_top[1]], [a_bot[0]], [a_bot[1]]]);
-                            let rgb = |t: &[f32]| [t[0], t[1], t[2]];
-                            let c = bilinear::mix(
-                                &w,
-                                [rgb(c_top), rgb(&c_top[3..]), rgb(c_bot), rgb(&c_bot[3..])],
-                            );
+                        let (a, col) = if ix != u32::MAX {
+                            let i = ix as usize;
+                            let w = bilinear::weights(fx, fy);
+                            let wa = &alpha[i..i + rw + 2];
+                            let wc = &color[3 * i..3 * (i + rw) + 6];
+                            let [a] = bilinear::mix(&w, [[wa[0]], [wa[1]], [wa[rw]], [wa[rw + 1]]]);
+                            // Four floats a tap, so that the mix and the compositing run four
+                            // wide: a texel's RGB and one more float, read inside the two
+                            // texels (the right tap from the float before it, rotated). The
+                            // fourth lane is never read.
+                            let (top, bot) = (&wc[..6], &wc[3 * rw..3 * rw + 6]);
+                            let left = |t: &[f32]| [t[0], t[1], t[2], t[3]];
+                            let right = |t: &[f32]| [t[3], t[4], t[5], t[2]];
+                            let c =
+                                bilinear::mix(&w, [left(top), right(top), left(bot), right(bot)]);
                             (a, c)
                         } else {
                             // Border or outside: the general sampler (zero padding).
-                            sample(alpha, color, rw, rh, sxs[x], sys[x])
+                            let (a, [r, g, b]) = sample(alpha, color, rw, rh, sx, sy);
+                            (a, [r, g, b, 0.0])
                         };
                         let a = if far { 1.0 } else { a };
                         let ta = *tx * a;
-                        cx[0] += ta * col[0];
-                        cx[1] += ta * col[1];
-                        cx[2] += ta * col[2];
+                        for (c, v) in cx.iter_mut().zip(col) {
+                            *c += ta * v;
+                        }
                         *tx -= ta;
                     }
                     for kk in k..k_end {
@@ -847,13 +854,15 @@ impl RowContext<'_> {
                 }
             }
             let wrow = &weights[i * px + y * tw..i * px + (y + 1) * tw];
-            for x in 0..tw {
+            for ((o, cx), w) in out.chunks_exact_mut(3).zip(c.chunks_exact(4)).zip(wrow) {
                 for k in 0..3 {
-                    out[3 * x + k] += wrow[x] * c[3 * x + k];
+                    o[k] += w * cx[k];
                 }
             }
             if keep {
-                mni[i].copy_from_slice(&c);
+                for (m, cx) in mni[i].chunks_exact_mut(3).zip(c.chunks_exact(4)) {
+                    m.copy_from_slice(&cx[..3]);
+                }
             }
         }
         samples

@@ -874,43 +874,40 @@ pub mod blocked {
         let p = Padded::new(s, x);
         let q = p.q + p_len;
         let dst = SharedMut(out.as_mut_ptr());
-        p.jobs.par_iter().for_each_init(
-            || (Vec::new(), [[0.0f32; 8]; 12]),
-            |(wide, tmp): &mut (Vec<f32>, [[f32; 8]; 12]), &job| {
+        p.jobs
+            .par_iter()
+            .for_each_init(Vec::new, |wide: &mut Vec<f32>, &job| {
                 wide.clear();
                 wide.resize(s.cout * q, 0.0);
                 for (col, len, taps) in p.segments(s, job) {
                     for ob in 0..blocks {
                         let wb = &wv[ob * per_block..(ob + 1) * per_block];
                         for g in (0..len).step_by(p_len) {
+                            // The tile's outputs go straight into `wide`, channel by
+                            // channel (written value by value through a buffer, with a
+                            // bounds check each, they took 8 % of stage 1's inference). The
+                            // last tile of a segment spills up to p_len − 1 columns into the
+                            // next segment's, which its own tiles overwrite later (and into
+                            // the buffer's p_len spare columns after the last segment).
+                            let at = ob * lanes * q + col + g;
                             // SAFETY: AVX2 and FMA were detected (`applies`).
                             unsafe {
                                 if nv == 2 {
-                                    tile::<2, 6>(&p, &taps, g, s.cin, wb, tmp);
+                                    tile::<2, 6>(&p, &taps, g, s.cin, wb, (wide, at, q));
                                 } else {
-                                    tile::<1, 12>(&p, &taps, g, s.cin, wb, tmp);
-                                }
-                            }
-                            // The last tile of a segment spills up to p_len − 1 columns into
-                            // the next segment's, which its own tiles overwrite later (and
-                            // into the buffer's p_len spare columns after the last segment).
-                            for i in 0..p_len {
-                                for l in 0..lanes {
-                                    wide[(ob * lanes + l) * q + col + g + i] =
-                                        tmp[i * nv + l / 8][l % 8];
+                                    tile::<1, 12>(&p, &taps, g, s.cin, wb, (wide, at, q));
                                 }
                             }
                         }
                     }
                 }
                 p.write_rows(s, job, wide, q, bias, dst);
-            },
-        );
+            });
         out
     }
 
-    /// One tile: `tmp[i · NV + v][l]` = Σ over taps `(k, origin)` and input channels of
-    /// `data[origin + g + i + ci · chan] · w[k][ci][v][l]`, for `i < P`. Safe indexing only
+    /// One tile: `wide[at + (8 v + l) · q + i]` = Σ over taps `(k, origin)` and input channels
+    /// of `data[origin + g + i + ci · chan] · w[k][ci][v][l]`, for `i < P`. Safe indexing only
     /// (slices of known length, so the checks leave the inner loop): the accumulators stay in
     /// registers.
     ///
@@ -923,7 +920,7 @@ pub mod blocked {
         g: usize,
         cin: usize,
         w: &[__m256],
-        tmp: &mut [[f32; 8]; 12],
+        (wide, at, q): (&mut [f32], usize, usize),
     ) {
         let mut acc = [[_mm256_setzero_ps(); NV]; P];
         for &(k, origin) in taps {
@@ -940,10 +937,15 @@ pub mod blocked {
                 }
             }
         }
-        for (i, a) in acc.iter().enumerate() {
-            for (v, r) in a.iter().enumerate() {
-                // SAFETY: a plain transmute of a vector into 8 floats.
-                tmp[i * NV + v] = unsafe { std::mem::transmute::<__m256, [f32; 8]>(*r) };
+        // SAFETY: a plain transmute of a vector into 8 floats (same size, any bits).
+        let vals = acc.map(|a| a.map(|r| unsafe { std::mem::transmute::<__m256, [f32; 8]>(r) }));
+        for v in 0..NV {
+            for lane in 0..8 {
+                let row = at + (8 * v + lane) * q;
+                let run: &mut [f32; P] = (&mut wide[row..row + P]).try_into().expect("P values");
+                for (o, val) in run.iter_mut().zip(&vals) {
+                    *o = val[v][lane];
+                }
             }
         }
     }

@@ -877,8 +877,13 @@ pub mod blocked {
         p.jobs
             .par_iter()
             .for_each_init(Vec::new, |wide: &mut Vec<f32>, &job| {
-                wide.clear();
-                wide.resize(s.cout * q, 0.0);
+                // Not cleared between jobs: every column `write_rows` reads is written by the
+                // job's own tiles first (each segment's tiles cover all its columns), so the
+                // buffer is zeroed once per thread, not once per job.
+                if wide.len() != s.cout * q {
+                    wide.clear();
+                    wide.resize(s.cout * q, 0.0);
+                }
                 for (col, len, taps) in p.segments(s, job) {
                     for ob in 0..blocks {
                         let wb = &wv[ob * per_block..(ob + 1) * per_block];

@@ -879,7 +879,7 @@ pub mod blocked {
             .for_each_init(Vec::new, |wide: &mut Vec<f32>, &job| {
                 // Not cleared between jobs: every column `write_rows` reads is written by the
                 // job's own tiles first (each segment's tiles cover all its columns), so the
-                // buffer is zeroed once per thread, not once per job.
+                // buffer is zeroed once per rayon split (a few per thread), not once per job.
                 if wide.len() != s.cout * q {
                     wide.clear();
                     wide.resize(s.cout * q, 0.0);

@@ -12,7 +12,8 @@
 //! [`grad_weight_direct`]): the input is padded once and split into its polyphase components
 //! (one for stride 1, four for stride 2 in the image axes), so every kernel offset reads one
 //! component at a shifted origin, in place. The forward then runs as a register-blocked AVX2 +
-//! FMA kernel ([`blocked`]) where the CPU has both and the output channels come in blocks of 8,
+//! FMA kernel ([`blocked`]) where the CPU has both and the output channels come in blocks of 8
+//! (its tiles AVX-512 wide where the CPU has AVX-512F and the channels come in blocks of 16),
 //! else as one `gemm` per kernel offset.
 
 // The gemm crate's API is raw pointers, tiles write disjoint parts of one output in parallel,
@@ -370,7 +371,8 @@ impl Padded {
         let phase = d * slice;
         let chan = sy * sx * phase;
         let item = s.cin * chan;
-        let mut data = vec![0.0f32; s.batch * item + 2 * slice + 8];
+        // The slack after the last slice: a tile reads up to 24 positions past its start.
+        let mut data = vec![0.0f32; s.batch * item + 2 * slice + 32];
         // One padded depth slice of one channel at a time: its rows scattered to the phases.
         data[..s.batch * item]
             .par_chunks_exact_mut(chan)
@@ -820,7 +822,9 @@ pub fn grad_bias(s: &ConvShape, gy: &[f32]) -> Vec<f32> {
 /// registers while it runs over every kernel offset and input channel (a broadcast input value
 /// times `NV` vectors of 8 output channels' weights), so the outputs are written once and the
 /// input is read in place, with no packing and no im2col. Picked at run time where the CPU has
-/// both features; elsewhere [`forward_direct_gemm`] runs. The same sums as the gemm kernels in
+/// both features; elsewhere [`forward_direct_gemm`] runs. Where the CPU also has AVX-512F and
+/// the output channels come in blocks of 16, the tiles hold vectors of 16 channels (32
+/// registers: 24 accumulators; the same bits as the AVX2 tiles, tested). The same sums as the gemm kernels in
 /// another order (tested against the f64 reference and against them).
 #[cfg(target_arch = "x86_64")]
 pub mod blocked {
@@ -836,44 +840,153 @@ pub mod blocked {
             && std::arch::is_x86_feature_detected!("fma")
     }
 
-    /// The convolution of the shapes [`super::forward_direct`] takes, `cout` a multiple of 8.
+    /// Which vector width a blocked forward runs at.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum Width {
+        /// The widest the CPU and the shape allow: AVX-512 where the CPU has AVX-512F and the
+        /// output channels come in blocks of 16, else AVX2.
+        Widest,
+        /// AVX2 and FMA, 8 output channels a vector (tests compare the two).
+        Avx2,
+    }
+
+    /// Whether the AVX-512 tiles run for `s` ([`Width::Widest`]): the CPU has AVX-512F and the
+    /// output channels come in whole blocks of 16.
+    pub fn avx512_applies(s: &ConvShape) -> bool {
+        applies(s) && s.cout.is_multiple_of(16) && std::arch::is_x86_feature_detected!("avx512f")
+    }
+
+    /// The convolution of the shapes [`super::forward_direct`] takes, `cout` a multiple of 8,
+    /// at the widest vectors the CPU has.
     ///
     /// # Panics
     /// If the CPU lacks AVX2 or FMA, or `cout` is not a multiple of 8 ([`applies`]).
     pub fn forward(s: &ConvShape, x: &[f32], w: &[f32], bias: Option<&[f32]>) -> Vec<f32> {
+        forward_at(s, x, w, bias, Width::Widest)
+    }
+
+    /// [`forward`] at the vector width `width`. Both widths give the same bits: every output
+    /// sums the same products in the same order (kernel offset, then input channel), one fused
+    /// multiply-add each.
+    ///
+    /// # Panics
+    /// As [`forward`].
+    pub fn forward_at(
+        s: &ConvShape,
+        x: &[f32],
+        w: &[f32],
+        bias: Option<&[f32]>,
+        width: Width,
+    ) -> Vec<f32> {
         assert!(
             applies(s),
             "the blocked kernel needs AVX2, FMA and cout % 8 == 0"
         );
         let sp: usize = s.output().iter().product();
         let mut out = vec![0.0f32; s.batch * s.cout * sp];
-        let nv = if s.cout.is_multiple_of(16) { 2 } else { 1 };
-        let (lanes, p_len) = (8 * nv, if nv == 2 { 6 } else { 12 });
+        let p = Padded::new(s, x);
+        let dst = SharedMut(out.as_mut_ptr());
+        if width == Width::Widest && avx512_applies(s) {
+            // 32 vector registers: 24 accumulators (12 positions × 32 channels, or 24 × 16)
+            // and the weights; the broadcast input rides in the multiply-add's memory operand.
+            let nv = if s.cout.is_multiple_of(32) { 2 } else { 1 };
+            let p_len = if nv == 2 { 12 } else { 24 };
+            // SAFETY: a plain transmute of 16 floats into a vector (same size, any bits).
+            let wv = pack::<__m512, 16>(s, w, nv, |c| unsafe {
+                std::mem::transmute::<[f32; 16], __m512>(c)
+            });
+            let per_block = wv.len() / (s.cout / (16 * nv));
+            run(
+                s,
+                &p,
+                p_len,
+                16 * nv,
+                bias,
+                dst,
+                |wide, at, q, taps, g, ob| {
+                    let wb = &wv[ob * per_block..(ob + 1) * per_block];
+                    // SAFETY: AVX-512F was detected (`avx512_applies`).
+                    unsafe {
+                        if nv == 2 {
+                            tile512::<2, 12>(&p, taps, g, s.cin, wb, (wide, at, q));
+                        } else {
+                            tile512::<1, 24>(&p, taps, g, s.cin, wb, (wide, at, q));
+                        }
+                    }
+                },
+            );
+        } else {
+            let nv = if s.cout.is_multiple_of(16) { 2 } else { 1 };
+            let p_len = if nv == 2 { 6 } else { 12 };
+            // SAFETY: a plain transmute of 8 floats into a vector (same size, any bits).
+            let wv = pack::<__m256, 8>(s, w, nv, |c| unsafe {
+                std::mem::transmute::<[f32; 8], __m256>(c)
+            });
+            let per_block = wv.len() / (s.cout / (8 * nv));
+            run(
+                s,
+                &p,
+                p_len,
+                8 * nv,
+                bias,
+                dst,
+                |wide, at, q, taps, g, ob| {
+                    let wb = &wv[ob * per_block..(ob + 1) * per_block];
+                    // SAFETY: AVX2 and FMA were detected (`applies`).
+                    unsafe {
+                        if nv == 2 {
+                            tile::<2, 6>(&p, taps, g, s.cin, wb, (wide, at, q));
+                        } else {
+                            tile::<1, 12>(&p, taps, g, s.cin, wb, (wide, at, q));
+                        }
+                    }
+                },
+            );
+        }
+        out
+    }
+
+    /// Weights per block of output channels, as vectors of `L` lanes: `[block][kernel
+    /// index][ci][NV]`, the vector of block ob, part v holding output channels
+    /// `ob · L · nv + L v … + L`.
+    fn pack<V, const L: usize>(
+        s: &ConvShape,
+        w: &[f32],
+        nv: usize,
+        vector: impl Fn([f32; L]) -> V,
+    ) -> Vec<V> {
         let kk: usize = s.kernel.iter().product();
-        // Weights per block of output channels, as vectors: [block][kernel index][ci][NV], the
-        // vector of block ob, part v holding output channels ob · lanes + 8v … + 8.
-        let blocks = s.cout / lanes;
-        let mut wv = Vec::with_capacity(w.len() / 8);
-        for ob in 0..blocks {
+        let lanes = L * nv;
+        let mut wv = Vec::with_capacity(w.len() / L);
+        for ob in 0..s.cout / lanes {
             for k in 0..kk {
                 for ci in 0..s.cin {
                     for v in 0..nv {
                         let lane = |l: usize| {
-                            let co = ob * lanes + 8 * v + l;
+                            let co = ob * lanes + L * v + l;
                             w[(co * s.cin + ci) * kk + k]
                         };
-                        let c: [f32; 8] = std::array::from_fn(lane);
-                        // SAFETY: a plain transmute of 8 floats into a vector (same size, any
-                        // bits).
-                        wv.push(unsafe { std::mem::transmute::<[f32; 8], __m256>(c) });
+                        wv.push(vector(std::array::from_fn(lane)));
                     }
                 }
             }
         }
-        let per_block = kk * s.cin * nv;
-        let p = Padded::new(s, x);
+        wv
+    }
+
+    /// Every job of `p`: its tiles of `p_len` wide positions, block of `lanes` output channels
+    /// by block (`tile(wide, at, q, taps, g, block)`), into the job's buffer, then the job's
+    /// rows into the output with the bias.
+    fn run(
+        s: &ConvShape,
+        p: &Padded,
+        p_len: usize,
+        lanes: usize,
+        bias: Option<&[f32]>,
+        dst: SharedMut,
+        tile: impl Fn(&mut [f32], usize, usize, &[(usize, usize)], usize, usize) + Sync,
+    ) {
         let q = p.q + p_len;
-        let dst = SharedMut(out.as_mut_ptr());
         p.jobs
             .par_iter()
             .for_each_init(Vec::new, |wide: &mut Vec<f32>, &job| {
@@ -885,8 +998,7 @@ pub mod blocked {
                     wide.resize(s.cout * q, 0.0);
                 }
                 for (col, len, taps) in p.segments(s, job) {
-                    for ob in 0..blocks {
-                        let wb = &wv[ob * per_block..(ob + 1) * per_block];
+                    for ob in 0..s.cout / lanes {
                         for g in (0..len).step_by(p_len) {
                             // The tile's outputs go straight into `wide`, channel by
                             // channel (written value by value through a buffer, with a
@@ -895,20 +1007,12 @@ pub mod blocked {
                             // next segment's, which its own tiles overwrite later (and into
                             // the buffer's p_len spare columns after the last segment).
                             let at = ob * lanes * q + col + g;
-                            // SAFETY: AVX2 and FMA were detected (`applies`).
-                            unsafe {
-                                if nv == 2 {
-                                    tile::<2, 6>(&p, &taps, g, s.cin, wb, (wide, at, q));
-                                } else {
-                                    tile::<1, 12>(&p, &taps, g, s.cin, wb, (wide, at, q));
-                                }
-                            }
+                            tile(wide, at, q, &taps, g, ob);
                         }
                     }
                 }
                 p.write_rows(s, job, wide, q, bias, dst);
             });
-        out
     }
 
     /// One tile: `wide[at + (8 v + l) · q + i]` = Σ over taps `(k, origin)` and input channels
@@ -947,6 +1051,47 @@ pub mod blocked {
         for v in 0..NV {
             for lane in 0..8 {
                 let row = at + (8 * v + lane) * q;
+                let run: &mut [f32; P] = (&mut wide[row..row + P]).try_into().expect("P values");
+                for (o, val) in run.iter_mut().zip(&vals) {
+                    *o = val[v][lane];
+                }
+            }
+        }
+    }
+
+    /// [`tile`] with vectors of 16 output channels: `wide[at + (16 v + l) · q + i]`, `i < P`.
+    ///
+    /// # Safety
+    /// The CPU has AVX-512F.
+    #[target_feature(enable = "avx512f")]
+    unsafe fn tile512<const NV: usize, const P: usize>(
+        p: &Padded,
+        taps: &[(usize, usize)],
+        g: usize,
+        cin: usize,
+        w: &[__m512],
+        (wide, at, q): (&mut [f32], usize, usize),
+    ) {
+        let mut acc = [[_mm512_setzero_ps(); NV]; P];
+        for &(k, origin) in taps {
+            let wk = &w[k * cin * NV..(k + 1) * cin * NV];
+            let at = origin + g;
+            for (ci, wr) in wk.chunks_exact(NV).enumerate() {
+                let x0 = at + ci * p.chan;
+                let xr: &[f32; P] = p.data[x0..x0 + P].try_into().expect("P values");
+                for (a, x) in acc.iter_mut().zip(xr) {
+                    let x = _mm512_set1_ps(*x);
+                    for (r, wv) in a.iter_mut().zip(wr) {
+                        *r = _mm512_fmadd_ps(x, *wv, *r);
+                    }
+                }
+            }
+        }
+        // SAFETY: a plain transmute of a vector into 16 floats (same size, any bits).
+        let vals = acc.map(|a| a.map(|r| unsafe { std::mem::transmute::<__m512, [f32; 16]>(r) }));
+        for v in 0..NV {
+            for lane in 0..16 {
+                let row = at + (16 * v + lane) * q;
                 let run: &mut [f32; P] = (&mut wide[row..row + P]).try_into().expect("P values");
                 for (o, val) in run.iter_mut().zip(&vals) {
                     *o = val[v][lane];

@@ -806,6 +806,20 @@ mod tests {
             if blocked::applies(&s) {
                 kernels.push(("blocked", blocked::forward(&s, &x, &w, Some(&bias))));
             }
+            // Where the CPU has AVX-512F, its tiles give the AVX2 tiles' bits (the same
+            // products summed in the same order).
+            #[cfg(target_arch = "x86_64")]
+            if blocked::avx512_applies(&s) {
+                use blocked::Width;
+                let wide = blocked::forward_at(&s, &x, &w, Some(&bias), Width::Widest);
+                let narrow = blocked::forward_at(&s, &x, &w, Some(&bias), Width::Avx2);
+                assert!(
+                    wide.iter()
+                        .zip(&narrow)
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{s:?}: the AVX-512 tiles differ from the AVX2 ones"
+                );
+            }
             for (name, ours) in kernels {
                 let err = ours
                     .iter()

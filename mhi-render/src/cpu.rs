@@ -205,10 +205,15 @@ pub fn heuristic_weights_for(
         .collect();
     let mut out = vec![0.0_f32; n * w * h];
     let px = w * h;
+    let k = &target.intrinsics;
     let rows: Vec<Vec<f32>> = (0..h)
         .into_par_iter()
         .map(|y| {
             let mut row = vec![0.0_f32; n * w];
+            if heuristic == BlendHeuristic::Soft {
+                soft_row(&nt, k, y, w, &mut row);
+                return row;
+            }
             let mut deltas = vec![0.0_f64; n];
             let mut wts = vec![0.0_f64; n];
             for x in 0..w {
@@ -233,6 +238,54 @@ pub fn heuristic_weights_for(
         }
     }
     out
+}
+
+/// Row `y` of the normalised Soft weights (`N × W`, normal-major) of normals `nt` (unit, in the
+/// target frame), normal by normal along the row so that the loops vectorise (a pixel at a
+/// time, with libm's exp, took 4.6 ms of a 448 × 256 view): the ray of pixel x is
+/// `((x + ½ − cx) / fx, ry, 1)`, `δ = |n · ray| / ‖ray‖`. Compiled for AVX2 too, picked at run
+/// time (the same arithmetic: Rust never fuses a multiply and an add on its own).
+fn soft_row(nt: &[DVec3], k: &mhi_geom::Intrinsics, y: usize, w: usize, row: &mut [f32]) {
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn avx2(nt: &[DVec3], k: &mhi_geom::Intrinsics, y: usize, w: usize, row: &mut [f32]) {
+        soft_row_generic(nt, k, y, w, row);
+    }
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: `avx2` only needs AVX2, which the CPU was just found to have.
+        #[allow(unsafe_code)]
+        return unsafe { avx2(nt, k, y, w, row) };
+    }
+    soft_row_generic(nt, k, y, w, row);
+}
+
+#[inline(always)]
+fn soft_row_generic(nt: &[DVec3], k: &mhi_geom::Intrinsics, y: usize, w: usize, row: &mut [f32]) {
+    let ry = (y as f64 + 0.5 - k.cy) / k.fy;
+    let rx: Vec<f64> = (0..w).map(|x| (x as f64 + 0.5 - k.cx) / k.fx).collect();
+    let inv: Vec<f64> = rx
+        .iter()
+        .map(|rx| 1.0 / (rx * rx + (ry * ry + 1.0)).sqrt())
+        .collect();
+    let mut wts = vec![0.0_f64; nt.len() * w];
+    let mut sum = vec![0.0_f64; w];
+    for (v, wk) in nt.iter().zip(wts.chunks_exact_mut(w.max(1))) {
+        let base = v.y * ry + v.z;
+        for (((o, s), rx), inv) in wk.iter_mut().zip(&mut sum).zip(&rx).zip(&inv) {
+            let delta = ((v.x * rx + base) * inv).abs().min(1.0);
+            *o = mhi_geom::soft_weight(delta);
+            *s += *o;
+        }
+    }
+    for (r, wk) in row
+        .chunks_exact_mut(w.max(1))
+        .zip(wts.chunks_exact(w.max(1)))
+    {
+        for ((o, v), s) in r.iter_mut().zip(wk).zip(&sum) {
+            *o = (v / s) as f32;
+        }
+    }
 }
 
 /// Validate given weights and normalise them per pixel.
@@ -1035,6 +1088,53 @@ mod tests {
     use super::*;
     use glam::DVec3;
     use mhi_geom::{Intrinsics, RigidTransform, depths_linear_in_disparity};
+
+    #[test]
+    fn soft_weights_row_by_row_are_the_per_pixel_weights() {
+        // Off-centre principal point, non-square pixels, a turned target: every pixel's
+        // weights against δ from `angle_cost_in_target` and `BlendHeuristic::weights`.
+        let k = Intrinsics::new(23.0, 31.0, 14.0, 7.5).unwrap();
+        let reference = Camera::new(k, RigidTransform::IDENTITY, 37, 23).unwrap();
+        let rel = RigidTransform::new(
+            DMat3::from_axis_angle(DVec3::new(0.3, 1.0, -0.4).normalize(), 0.6),
+            DVec3::new(0.2, -0.05, 0.1),
+        )
+        .unwrap();
+        let target = Camera::new(k, rel.inverse(), 29, 17).unwrap();
+        let normals = mhi_geom::NormalSet::paper();
+        let ours = heuristic_weights_for(&normals, &reference, &target, BlendHeuristic::Soft);
+        let r = reference.from_other(&target).rotation();
+        let (w, h, n) = (29, 17, normals.len());
+        let mut worst = 0.0_f64;
+        for y in 0..h {
+            for x in 0..w {
+                let ray = k.ray(mhi_geom::pixel_center(x, y));
+                let deltas: Vec<f64> = normals
+                    .normals()
+                    .iter()
+                    .map(|v| mhi_geom::angle_cost_in_target(*v, &r, ray).unwrap())
+                    .collect();
+                let want = BlendHeuristic::Soft.weights(&deltas);
+                for (i, want) in want.iter().enumerate() {
+                    let got = ours[i * (w * h) as usize + (y * w + x) as usize];
+                    worst = worst.max((f64::from(got) - want).abs());
+                }
+            }
+        }
+        assert!(worst < 1e-7, "largest difference {worst:e}");
+        // The AVX2 compilation gives the baseline's bits.
+        let nt: Vec<DVec3> = normals
+            .normals()
+            .iter()
+            .map(|v| (r.transpose() * *v).normalize())
+            .collect();
+        for y in 0..17 {
+            let (mut a, mut b) = (vec![0.0_f32; n * 29], vec![0.0_f32; n * 29]);
+            soft_row(&nt, &k, y, 29, &mut a);
+            soft_row_generic(&nt, &k, y, 29, &mut b);
+            assert!(a.iter().zip(&b).all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
+    }
 
     #[test]
     fn the_avx2_rows_give_the_baseline_rows_bits() {

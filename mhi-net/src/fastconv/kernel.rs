@@ -1048,11 +1048,21 @@ pub mod blocked {
         }
         // SAFETY: a plain transmute of a vector into 8 floats (same size, any bits).
         let vals = acc.map(|a| a.map(|r| unsafe { std::mem::transmute::<__m256, [f32; 8]>(r) }));
+        write_tile(&vals, (wide, at, q));
+    }
+
+    /// A tile's results, `vals[i][v][l]` for position `i` and channel `L v + l`, into
+    /// `wide[at + (L v + l) · q + i]`: one checked run of `P` columns a channel.
+    #[inline(always)]
+    fn write_tile<const L: usize, const NV: usize, const P: usize>(
+        vals: &[[[f32; L]; NV]; P],
+        (wide, at, q): (&mut [f32], usize, usize),
+    ) {
         for v in 0..NV {
-            for lane in 0..8 {
-                let row = at + (8 * v + lane) * q;
+            for lane in 0..L {
+                let row = at + (L * v + lane) * q;
                 let run: &mut [f32; P] = (&mut wide[row..row + P]).try_into().expect("P values");
-                for (o, val) in run.iter_mut().zip(&vals) {
+                for (o, val) in run.iter_mut().zip(vals) {
                     *o = val[v][lane];
                 }
             }
@@ -1089,14 +1099,6 @@ pub mod blocked {
         }
         // SAFETY: a plain transmute of a vector into 16 floats (same size, any bits).
         let vals = acc.map(|a| a.map(|r| unsafe { std::mem::transmute::<__m512, [f32; 16]>(r) }));
-        for v in 0..NV {
-            for lane in 0..16 {
-                let row = at + (16 * v + lane) * q;
-                let run: &mut [f32; P] = (&mut wide[row..row + P]).try_into().expect("P values");
-                for (o, val) in run.iter_mut().zip(&vals) {
-                    *o = val[v][lane];
-                }
-            }
-        }
+        write_tile(&vals, (wide, at, q));
     }
 }

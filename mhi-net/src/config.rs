@@ -239,6 +239,10 @@ mod tests {
         let text = serde_json::to_string(&c).unwrap();
         let back = TrainConfig::from_json(&text, Path::new("config.json")).unwrap();
         assert_eq!(back.loss_kind, LossKind::Perceptual);
+        c.loss_kind = LossKind::L1;
+        let l1 = serde_json::to_string(&c).unwrap();
+        let back = TrainConfig::from_json(&l1, Path::new("config.json")).unwrap();
+        assert_eq!(back.loss_kind, LossKind::L1);
         for (name, kind) in [
             ("L1 + 0.01*(conv1_2/2.6) (VGG16)", LossKind::Perceptual),
             (crate::loss::PHOTOMETRIC_NAME, LossKind::Photometric),

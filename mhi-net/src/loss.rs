@@ -1,5 +1,5 @@
-//! Training losses: the paper's L1 + VGG perceptual loss, and the L1 + SSIM fallback used when
-//! the pretrained VGG16 weights are absent.
+//! Training losses: the paper's L1 + VGG perceptual loss, the L1 + SSIM fallback used when
+//! the pretrained VGG16 weights are absent, and L1 alone.
 //!
 //! The run's `config.json` records which loss was used.
 
@@ -56,6 +56,9 @@ pub fn photometric(a: Tensor<4>, b: Tensor<4>) -> Tensor<1> {
     l1(a.clone(), b.clone()) * 0.15 + ssim_loss(a, b) * 0.85
 }
 
+/// Name of the L1 loss recorded in a run's config (`--loss l1`).
+pub const L1_NAME: &str = "L1";
+
 /// Name of the L1 + SSIM loss recorded in a run's config (chosen with `--loss photometric`, or
 /// the fallback when the VGG16 weights are absent: training then says why).
 pub const PHOTOMETRIC_NAME: &str = "0.15*L1 + 0.85*(1-SSIM)/2";
@@ -102,12 +105,17 @@ pub enum LossKind {
     Photometric,
     /// L1 + a factor times the VGG16 perceptual term (needs the VGG16 weights to resume).
     Perceptual,
+    /// L1 alone: the per-pixel error PSNR measures (the loss of the PyTorch prototype the
+    /// learned model is compared with).
+    L1,
 }
 
 /// The loss a training run minimises.
 pub enum TrainLoss {
     /// L1 + SSIM (no pretrained weights needed).
     Photometric,
+    /// L1 alone.
+    L1,
     /// L1 + `weight` · VGG16 perceptual term (the paper's loss, with VGG16 for VGG19).
     Perceptual {
         /// The pretrained VGG16.
@@ -144,6 +152,7 @@ impl TrainLoss {
     pub fn kind(&self) -> LossKind {
         match self {
             Self::Photometric => LossKind::Photometric,
+            Self::L1 => LossKind::L1,
             Self::Perceptual { .. } => LossKind::Perceptual,
         }
     }
@@ -152,6 +161,7 @@ impl TrainLoss {
     pub fn name(&self) -> String {
         match self {
             Self::Photometric => PHOTOMETRIC_NAME.into(),
+            Self::L1 => L1_NAME.into(),
             Self::Perceptual { weight, .. } => format!(
                 "L1 + {weight}*(conv1_2/2.6 + conv2_2/4.8 + conv3_2/3.7 + conv4_2/5.6 + conv5_2*10/1.5) {PERCEPTUAL_SUFFIX}"
             ),
@@ -168,6 +178,10 @@ impl TrainLoss {
             Self::Photometric => {
                 let target = target.expand(output.dims());
                 Ok(photometric(output, target))
+            }
+            Self::L1 => {
+                let target = target.expand(output.dims());
+                Ok(l1(output, target))
             }
             Self::Perceptual { vgg, weight } => perceptual(vgg, output, target, *weight),
         }
@@ -222,5 +236,26 @@ mod tests {
                 .unwrap();
             assert!(g.iter().all(|x| x.is_finite()), "{va} vs {vb}");
         }
+    }
+
+    /// `--loss l1` is the mean absolute error of the whole batch against a broadcast target,
+    /// recorded as `L1`: values by hand on a 1 × 3 × 2 × 2 image.
+    #[test]
+    fn the_l1_loss_is_the_mean_absolute_error() {
+        let device = Device::flex();
+        let values = vec![
+            0.0_f32, 0.5, 1.0, 0.25, // red
+            0.5, 0.5, 0.5, 0.5, // green
+            1.0, 1.0, 0.0, 0.0, // blue
+        ];
+        let out: Tensor<4> =
+            Tensor::from_data(burn::tensor::TensorData::new(values, [1, 3, 2, 2]), &device);
+        let target = Tensor::<4>::ones([1, 3, 2, 2], &device) * 0.5;
+        // |Δ| per channel: 0.5 + 0 + 0.5 + 0.25, 0 × 4, 0.5 × 4 → 3.25 over 12 values.
+        let want = 3.25_f32 / 12.0;
+        let got: f32 = TrainLoss::L1.compute(out, target).unwrap().into_scalar();
+        assert!((got - want).abs() < 1e-7, "{got} vs {want}");
+        assert_eq!(TrainLoss::L1.kind(), LossKind::L1);
+        assert_eq!(TrainLoss::L1.name(), L1_NAME);
     }
 }

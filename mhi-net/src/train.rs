@@ -147,7 +147,9 @@ impl Trainer {
         let cfg_path = run.config_path();
         let config = run.config()?;
         config.validate()?;
-        let loss = if config.loss_kind == LossKind::Perceptual {
+        let loss = if config.loss_kind == LossKind::L1 {
+            TrainLoss::L1
+        } else if config.loss_kind == LossKind::Perceptual {
             match TrainLoss::from_weights(weights, config.perceptual_weight, &device) {
                 (l @ TrainLoss::Perceptual { .. }, _) => l,
                 (_, why) => {

@@ -38,6 +38,8 @@ pub enum LossArg {
     Perceptual,
     /// L1 + SSIM.
     Photometric,
+    /// L1 alone (the per-pixel error PSNR measures).
+    L1,
 }
 
 /// What stage 1 starts from (`--prior`).
@@ -126,8 +128,8 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = defaults().val_samples)]
     pub val_samples: usize,
     /// Loss: `auto` (the paper's L1 + VGG perceptual loss when the VGG16 weights are in the
-    /// cache, else L1 + SSIM, said once), `perceptual` (fail without the weights) or
-    /// `photometric` (L1 + SSIM).
+    /// cache, else L1 + SSIM, said once), `perceptual` (fail without the weights),
+    /// `photometric` (L1 + SSIM) or `l1` (L1 alone).
     #[arg(long, value_enum, default_value_t = LossArg::Auto)]
     pub loss: LossArg,
     /// Factor of the VGG feature term against the pixel L1 in the perceptual loss. The default

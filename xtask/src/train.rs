@@ -89,6 +89,7 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         }
         let loss = match a.loss {
             LossArg::Photometric => TrainLoss::Photometric,
+            LossArg::L1 => TrainLoss::L1,
             want => match TrainLoss::from_weights(Some(&weights), a.perceptual_weight, &device) {
                 (l @ TrainLoss::Perceptual { .. }, _) => l,
                 (l, why) => {
@@ -117,7 +118,7 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         &self::device(a.backend)?,
     )
     .ok();
-    let untrained = if trainer.step_index() == 0 {
+    let untrained = if trainer.step_index() == 0 && a.eval_samples > 0 {
         Some(trainer.evaluate_scores(a.eval_samples, lpips.as_ref())?)
     } else {
         None
@@ -150,7 +151,12 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         }
     }
     pb.finish_and_clear();
-    let scores = trainer.evaluate_scores(a.eval_samples, lpips.as_ref())?;
+    // No closing evaluation with --eval-samples 0: a table of zeros would read as scores.
+    let scores = if a.eval_samples > 0 {
+        Some(trainer.evaluate_scores(a.eval_samples, lpips.as_ref())?)
+    } else {
+        None
+    };
     println!(
         "trained {} steps in {:.0} s ({} normals, {} planes, {}x{}, loss: {})",
         cfg.total_steps(),
@@ -162,36 +168,43 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         cfg.loss
     );
     let l = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.4}"));
-    println!(
-        "validation scores over {} samples of {} (PSNR dB higher is better, LPIPS-alex lower is better):",
-        a.eval_samples,
-        trainer.validation_source()
-    );
-    println!("  {:<30} {:>8} {:>8}", "", "PSNR", "LPIPS");
-    println!(
-        "  {:<30} {:>8.2} {:>8}",
-        "learned blend",
-        scores.psnr_learned,
-        l(scores.lpips_learned)
-    );
-    println!(
-        "  {:<30} {:>8.2} {:>8}",
-        "Soft heuristic, same stage 1",
-        scores.psnr_soft,
-        l(scores.lpips_soft)
-    );
-    if let Some(u) = untrained {
+    if let Some(scores) = &scores {
+        println!(
+            "validation scores over {} samples of {} (PSNR dB higher is better, LPIPS-alex lower is better):",
+            a.eval_samples,
+            trainer.validation_source()
+        );
+        println!("  {:<30} {:>8} {:>8}", "", "PSNR", "LPIPS");
         println!(
             "  {:<30} {:>8.2} {:>8}",
-            "untrained model (learned)",
-            u.psnr_learned,
-            l(u.lpips_learned)
+            "learned blend",
+            scores.psnr_learned,
+            l(scores.lpips_learned)
         );
         println!(
             "  {:<30} {:>8.2} {:>8}",
-            "untrained model (Soft)",
-            u.psnr_soft,
-            l(u.lpips_soft)
+            "Soft heuristic, same stage 1",
+            scores.psnr_soft,
+            l(scores.lpips_soft)
+        );
+        if let Some(u) = untrained {
+            println!(
+                "  {:<30} {:>8.2} {:>8}",
+                "untrained model (learned)",
+                u.psnr_learned,
+                l(u.lpips_learned)
+            );
+            println!(
+                "  {:<30} {:>8.2} {:>8}",
+                "untrained model (Soft)",
+                u.psnr_soft,
+                l(u.lpips_soft)
+            );
+        }
+    } else {
+        println!(
+            "no closing evaluation (--eval-samples 0); the validation curve is in {}",
+            mhi_net::RunDir::new(&a.run).val_path().display()
         );
     }
     let summary = serde_json::json!({

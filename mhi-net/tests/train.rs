@@ -258,3 +258,47 @@ fn stiff_training_stays_finite() {
         "weights became non-finite"
     );
 }
+
+/// A run trained with L1 alone records it and resumes with it: the resumed run ends exactly
+/// where the uninterrupted L1 run ends (resuming with L1 + SSIM would not).
+#[test]
+fn an_l1_run_resumes_with_l1() {
+    let d = tempfile::tempdir().unwrap();
+    data(d.path());
+    let device = Device::flex().autodiff();
+    let run = |name: &str, steps: Option<usize>| {
+        let mut t = Trainer::new(
+            tiny(4, 2),
+            &d.path().join(name),
+            d.path(),
+            TrainLoss::L1,
+            device.clone(),
+        )
+        .unwrap();
+        for _ in 0..steps.unwrap_or(usize::MAX) {
+            if t.finished() {
+                break;
+            }
+            t.step().unwrap();
+        }
+        t
+    };
+    let a = run("a", None);
+    drop(run("b", Some(4)));
+    let config = std::fs::read_to_string(d.path().join("b/config.json")).unwrap();
+    assert!(config.contains("\"loss_kind\": \"L1\""), "{config}");
+    let mut b = Trainer::resume(&d.path().join("b"), d.path(), None, device.clone()).unwrap();
+    assert_eq!(b.step_index(), 3, "resumes from the last checkpoint");
+    while !b.finished() {
+        b.step().unwrap();
+    }
+    let diff = outputs(&a)
+        .iter()
+        .zip(&outputs(&b))
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max);
+    assert!(
+        diff == 0.0,
+        "resumed L1 run differs from the uninterrupted one by {diff}"
+    );
+}

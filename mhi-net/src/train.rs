@@ -147,21 +147,22 @@ impl Trainer {
         let cfg_path = run.config_path();
         let config = run.config()?;
         config.validate()?;
-        let loss = if config.loss_kind == LossKind::L1 {
-            TrainLoss::L1
-        } else if config.loss_kind == LossKind::Perceptual {
-            match TrainLoss::from_weights(weights, config.perceptual_weight, &device) {
-                (l @ TrainLoss::Perceptual { .. }, _) => l,
-                (_, why) => {
-                    return Err(Error::Config(format!(
-                        "{}: the run trains with the VGG16 perceptual loss, but its weights cannot be loaded ({}); fetch the pretrained weights first",
-                        cfg_path.display(),
-                        why.unwrap_or_default()
-                    )));
+        // Every kind named: a new one cannot fall through to another loss on resume.
+        let loss = match config.loss_kind {
+            LossKind::Photometric => TrainLoss::Photometric,
+            LossKind::L1 => TrainLoss::L1,
+            LossKind::Perceptual => {
+                match TrainLoss::from_weights(weights, config.perceptual_weight, &device) {
+                    (l @ TrainLoss::Perceptual { .. }, _) => l,
+                    (_, why) => {
+                        return Err(Error::Config(format!(
+                            "{}: the run trains with the VGG16 perceptual loss, but its weights cannot be loaded ({}); fetch the pretrained weights first",
+                            cfg_path.display(),
+                            why.unwrap_or_default()
+                        )));
+                    }
                 }
             }
-        } else {
-            TrainLoss::Photometric
         };
         if !run.has_checkpoint() {
             return Err(Error::Config(format!(

@@ -167,7 +167,10 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         cfg.height,
         cfg.loss
     );
-    let l = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.4}"));
+    let row = |label: &str, psnr: f64, lpips: Option<f64>| {
+        let lpips = lpips.map_or("-".to_string(), |x| format!("{x:.4}"));
+        println!("  {label:<30} {psnr:>8.2} {lpips:>8}");
+    };
     if let Some(scores) = &scores {
         println!(
             "validation scores over {} samples of {} (PSNR dB higher is better, LPIPS-alex lower is better):",
@@ -175,31 +178,15 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
             trainer.validation_source()
         );
         println!("  {:<30} {:>8} {:>8}", "", "PSNR", "LPIPS");
-        println!(
-            "  {:<30} {:>8.2} {:>8}",
-            "learned blend",
-            scores.psnr_learned,
-            l(scores.lpips_learned)
-        );
-        println!(
-            "  {:<30} {:>8.2} {:>8}",
+        row("learned blend", scores.psnr_learned, scores.lpips_learned);
+        row(
             "Soft heuristic, same stage 1",
             scores.psnr_soft,
-            l(scores.lpips_soft)
+            scores.lpips_soft,
         );
-        if let Some(u) = untrained {
-            println!(
-                "  {:<30} {:>8.2} {:>8}",
-                "untrained model (learned)",
-                u.psnr_learned,
-                l(u.lpips_learned)
-            );
-            println!(
-                "  {:<30} {:>8.2} {:>8}",
-                "untrained model (Soft)",
-                u.psnr_soft,
-                l(u.lpips_soft)
-            );
+        if let Some(u) = &untrained {
+            row("untrained model (learned)", u.psnr_learned, u.lpips_learned);
+            row("untrained model (Soft)", u.psnr_soft, u.lpips_soft);
         }
     } else {
         println!(

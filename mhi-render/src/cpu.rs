@@ -41,10 +41,14 @@ pub enum Blend<'a> {
 ///   bounded per layer;
 /// - **transmittance** — a pixel stops compositing once its remaining transmittance is within
 ///   its share, plus whatever layer share its tile did not spend: what lies behind adds at most
-///   that much. A row composites layer by layer, near to far; adjacent tiles that keep the
-///   layer form one run (an exact render's runs are whole rows), which stops where its most
-///   demanding tile stops, over the span from its first tile's first open pixel to its last
-///   tile's last.
+///   that much. When only the blended view is asked for (not the multi-normal images), the
+///   share bounds the blend, Σ_i w_i · T_i, and each of the `K` kept normals spends an equal
+///   part of it: normal i stops at `T ≤ share / (K · w_i)` at that pixel, so a light normal stops
+///   after a layer or two and a heavy one a little later than alone. With the multi-normal images
+///   every image is bounded on its own (each normal stops at the share). A row composites layer
+///   by layer, near to far; adjacent tiles that keep the layer form one run (an exact render's
+///   runs are whole rows) over the span from its first tile's first open pixel to its last
+///   tile's last, each pixel tested against its own stop.
 ///
 /// The farthest layer of each normal is never skipped, and at least one normal is kept.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -539,6 +543,17 @@ fn tile_plans(
         .collect()
 }
 
+/// A kept normal's equal part of `share`, in its own colour units, where its blend weight is at
+/// most `weight`: `share / (kept · weight)`, a hair under for the rounding of the weights' sum
+/// (infinite at weight zero: nothing of the normal shows).
+fn share_of(share: f32, kept: usize, weight: f32) -> f32 {
+    if weight > 0.0 {
+        share * (1.0 - 1e-4) / (kept as f32 * weight)
+    } else {
+        f32::INFINITY
+    }
+}
+
 /// Render the MHI from `target` (the fast path).
 ///
 /// # Errors
@@ -759,7 +774,15 @@ impl RowContext<'_> {
         let (mut sxs, mut sys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
         let (mut fxs, mut fys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
         let mut idx = vec![0_u32; tw];
+        // Per pixel of the row, the transmittance at which the current normal stops.
+        let mut thr = vec![0.0_f32; tw];
         let stop = eps > 0.0;
+        // Without the multi-normal images only the blend is bounded: Σ_i w_i · stop_i within
+        // the tile's stop share. Each kept normal spends an equal part of it, so a pixel's
+        // normal stops at `share / (kept · w_i)` (a light normal stops early, a heavy one
+        // late); with them, each normal's image is bounded on its own.
+        let kept = active.iter().filter(|a| **a).count();
+        let weighted = stop && !keep && kept > 1;
         let mut samples = 0_usize;
         let v = y as f32 + 0.5;
         let band = &tiles[(y / TILE_H) * tiles_x..][..tiles_x];
@@ -774,11 +797,26 @@ impl RowContext<'_> {
             }
             c.fill(0.0);
             t.fill(1.0);
+            let wrow = &weights[i * px + y * tw..i * px + (y + 1) * tw];
+            for (x, (th, w)) in thr.iter_mut().zip(wrow).enumerate() {
+                let s = tile_stop[x / TILE_W];
+                *th = if weighted { share_of(s, kept, *w) } else { s };
+            }
             // Layers near to far across the row (each pixel still sees its layers in
-            // front-to-back order): adjacent tiles that composite layer j form one run, which
-            // stops where its most demanding tile stops. An exact render's runs are whole rows.
+            // front-to-back order): adjacent tiles that composite layer j form one run. An
+            // exact render's runs are whole rows. A tile's span starts without the pixels
+            // that need nothing of this normal (blended, a weight within the stop share).
             for (o, x_start) in open.iter_mut().zip((0..tw).step_by(TILE_W)) {
-                *o = (x_start, (x_start + TILE_W).min(tw));
+                let (mut a, mut b) = (x_start, (x_start + TILE_W).min(tw));
+                if stop {
+                    while a < b && t[a] <= thr[a] {
+                        a += 1;
+                    }
+                    while b > a && t[b - 1] <= thr[b - 1] {
+                        b -= 1;
+                    }
+                }
+                *o = (a, b);
             }
             next.fill(0);
             for j in (0..d).rev() {
@@ -791,10 +829,8 @@ impl RowContext<'_> {
                         k += 1;
                         continue;
                     }
-                    let mut eps = tile_stop[k];
                     let mut k_end = k + 1;
                     while k_end < tiles_x && keeps(k_end, &next, &open) {
-                        eps = eps.min(tile_stop[k_end]);
                         k_end += 1;
                     }
                     // From the first open pixel of the run's first tile to the last of its
@@ -850,12 +886,13 @@ impl RowContext<'_> {
                     let run = x0..x1;
                     let pixels = t[run.clone()]
                         .iter_mut()
+                        .zip(&thr[run.clone()])
                         .zip(c[4 * x0..4 * x1].as_chunks_mut::<4>().0)
                         .zip(&idx[run.clone()])
                         .zip(fxs[run.clone()].iter().zip(&fys[run.clone()]))
                         .zip(sxs[run.clone()].iter().zip(&sys[run]));
-                    for ((((tx, cx), &ix), (&fx, &fy)), (&sx, &sy)) in pixels {
-                        if stop && *tx <= eps {
+                    for (((((tx, &th), cx), &ix), (&fx, &fy)), (&sx, &sy)) in pixels {
+                        if stop && *tx <= th {
                             continue;
                         }
                         samples += 1;
@@ -894,10 +931,10 @@ impl RowContext<'_> {
                             // its stop): pixels that stopped stay stopped, so it only
                             // shrinks; empty, farther layers cannot show there.
                             let (mut a, mut b) = open[kk];
-                            while a < b && t[a] <= tile_stop[kk] {
+                            while a < b && t[a] <= thr[a] {
                                 a += 1;
                             }
-                            while b > a && t[b - 1] <= tile_stop[kk] {
+                            while b > a && t[b - 1] <= thr[b - 1] {
                                 b -= 1;
                             }
                             open[kk] = (a, b);
@@ -906,7 +943,6 @@ impl RowContext<'_> {
                     k = k_end;
                 }
             }
-            let wrow = &weights[i * px + y * tw..i * px + (y + 1) * tw];
             for ((o, cx), w) in out.chunks_exact_mut(3).zip(c.chunks_exact(4)).zip(wrow) {
                 for k in 0..3 {
                     o[k] += w * cx[k];

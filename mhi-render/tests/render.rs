@@ -529,3 +529,78 @@ fn the_needed_share_is_a_floor_of_what_a_pruned_render_composites() {
         );
     }
 }
+
+/// Without the multi-normal images only the blend is bounded, so each pixel's normals stop by
+/// blend weight: a light normal stops early, a heavy one late, Σ_i w_i · stop_i within the stop
+/// share. Every layer is white and the far one opaque, so a pixel loses exactly the
+/// transmittance at which each normal stopped: the worst case of the bound. With weights far
+/// apart, the blended render composites fewer samples than one that bounds every normal's image
+/// on its own, and both stay within their bounds at every pixel. (Fails, by more than twice the
+/// budget, if each normal spends the whole stop share at its weight.)
+#[test]
+fn light_normals_stop_early_and_the_blend_stays_within_the_budget() {
+    let (n, d, w, h) = (5, 24, 40, 24);
+    let base = random_mhi(n, d, w, h, false, 21);
+    let px = (w * h) as usize;
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let alpha: Vec<f32> = (0..n * d * px)
+        .map(|k| {
+            if (k / px).is_multiple_of(d) {
+                1.0
+            } else {
+                0.15 + 0.2 * rng.random::<f32>()
+            }
+        })
+        .collect();
+    let white = Rgb32FImage::from_pixel(w, h, image::Rgb([1.0, 1.0, 1.0]));
+    let mhi = Mhi::new(
+        base.normals().clone(),
+        base.depths().to_vec(),
+        *base.reference(),
+        LayerColor::Shared(white),
+        alpha,
+    )
+    .unwrap();
+    let tgt = target(&mhi, 1.0, 0.5, DVec3::new(0.02, 0.0, 0.01));
+    // Normal 0 from 0.9 of the blend at the left edge to 0.2 at the right; the others share
+    // the rest as 1 : 2 : 3 : 4.
+    let mut weights = vec![0.0_f32; n * px];
+    for p in 0..px {
+        let heavy = 0.9 - 0.7 * (p % w as usize) as f32 / (w - 1) as f32;
+        weights[p] = heavy;
+        for i in 1..n {
+            weights[i * px + p] = (1.0 - heavy) * i as f32 / 10.0;
+        }
+    }
+    let blend = Blend::Weights(&weights);
+    let opts = |prune, keep_multi_normal| RenderOptions {
+        blend,
+        prune,
+        keep_multi_normal,
+    };
+    let exact = render(&mhi, &tgt, &opts(Prune::NONE, true)).unwrap();
+    let blended = render(&mhi, &tgt, &opts(Prune::DEFAULT, false)).unwrap();
+    let each = render(&mhi, &tgt, &opts(Prune::DEFAULT, true)).unwrap();
+    let budget = Prune::DEFAULT.budget;
+    for r in [&blended, &each] {
+        assert!(r.stats.bound <= budget + 1e-7, "{:?}", r.stats);
+        let worst = largest_change(&r.image, &exact.image);
+        assert!(
+            worst <= r.stats.bound + 1e-6,
+            "a pixel moved by {worst}, beyond the bound {} ({:?})",
+            r.stats.bound,
+            r.stats
+        );
+        // The worst case is reached, not merely bounded: a pixel loses close to the bound.
+        assert!(worst > 0.5 * r.stats.bound, "{worst} {:?}", r.stats);
+    }
+    for (m, e) in each.multi_normal.iter().zip(&exact.multi_normal) {
+        assert!(largest_change(m, e) <= each.stats.bound + 1e-6);
+    }
+    assert!(
+        blended.stats.samples < 0.95 * each.stats.samples,
+        "blended {:?}, each normal bounded {:?}",
+        blended.stats,
+        each.stats
+    );
+}

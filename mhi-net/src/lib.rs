@@ -66,7 +66,7 @@ pub use train::{
 };
 pub use view::{
     BlendChoice, Blended, MhiSource, MhiTimes, MultiNormal, View, ViewSynthesis, multi_normal,
-    render_view,
+    render_image, render_view,
 };
 pub use volume::{
     LOGIT_INPUT_SCALE, PRIOR_EPS, Prior, Stage1Input, SweepPrior, cost_volume, stage1_input,

@@ -188,6 +188,32 @@ pub fn render_view(
     blend: BlendChoice,
     prune: Prune,
 ) -> crate::Result<View> {
+    render_view_keeping(mhi, model, target, blend, prune, true)
+}
+
+/// [`render_view`] for when only the blended image is wanted (`render`, orbits): a heuristic
+/// blend then does not keep the multi-normal images (the view's `multi_normal` is empty), and
+/// its render bounds the blend alone, so each pixel's light normals stop compositing early
+/// (see [`mhi_render::Prune`]); same bound, fewer samples. The learned blend needs every
+/// multi-normal image and renders as in [`render_view`].
+pub fn render_image(
+    mhi: &Mhi,
+    model: Option<&Model>,
+    target: &Camera,
+    blend: BlendChoice,
+    prune: Prune,
+) -> crate::Result<View> {
+    render_view_keeping(mhi, model, target, blend, prune, false)
+}
+
+fn render_view_keeping(
+    mhi: &Mhi,
+    model: Option<&Model>,
+    target: &Camera,
+    blend: BlendChoice,
+    prune: Prune,
+    keep: bool,
+) -> crate::Result<View> {
     let model = model.filter(|_| mhi.n() > 1);
     match (blend, model) {
         (BlendChoice::Learned, Some(m)) => {
@@ -214,7 +240,7 @@ pub fn render_view(
                 &RenderOptions {
                     blend: Blend::Heuristic(h),
                     prune,
-                    keep_multi_normal: true,
+                    keep_multi_normal: keep,
                 },
             )?;
             Ok(View {

@@ -11,14 +11,15 @@ use mhi_net::Model;
 use mhi_render::{Mhi, Prune, RenderStats};
 
 /// One novel view of an MHI within `prune`'s budget: blended by a trained model's network
-/// (N > 1), or by Soft, where normals the view does not need are also left out.
+/// (N > 1), or by Soft, where normals the view does not need are also left out and each
+/// pixel's light normals stop early (only the blend is bounded; no multi-normal images).
 pub fn view(
     mhi: &Mhi,
     model: Option<&Model>,
     cam: &Camera,
     prune: Prune,
 ) -> anyhow::Result<(Rgb32FImage, RenderStats)> {
-    let v = mhi_net::render_view(mhi, model, cam, mhi_net::BlendChoice::Learned, prune)?;
+    let v = mhi_net::render_image(mhi, model, cam, mhi_net::BlendChoice::Learned, prune)?;
     Ok((v.image, v.stats))
 }
 

@@ -554,6 +554,19 @@ fn share_of(share: f32, kept: usize, weight: f32) -> f32 {
     }
 }
 
+/// The span `(a, b)` without the pixels at either end whose transmittance `t` is at or below
+/// their stop `thr` (those inside stay; pass 2 passes over them).
+#[inline]
+fn open_span((mut a, mut b): (usize, usize), t: &[f32], thr: &[f32]) -> (usize, usize) {
+    while a < b && t[a] <= thr[a] {
+        a += 1;
+    }
+    while b > a && t[b - 1] <= thr[b - 1] {
+        b -= 1;
+    }
+    (a, b)
+}
+
 /// Render the MHI from `target` (the fast path).
 ///
 /// # Errors
@@ -798,25 +811,23 @@ impl RowContext<'_> {
             c.fill(0.0);
             t.fill(1.0);
             let wrow = &weights[i * px + y * tw..i * px + (y + 1) * tw];
-            for (x, (th, w)) in thr.iter_mut().zip(wrow).enumerate() {
-                let s = tile_stop[x / TILE_W];
-                *th = if weighted { share_of(s, kept, *w) } else { s };
+            if stop {
+                for (x, (th, w)) in thr.iter_mut().zip(wrow).enumerate() {
+                    let s = tile_stop[x / TILE_W];
+                    *th = if weighted { share_of(s, kept, *w) } else { s };
+                }
             }
             // Layers near to far across the row (each pixel still sees its layers in
             // front-to-back order): adjacent tiles that composite layer j form one run. An
             // exact render's runs are whole rows. A tile's span starts without the pixels
             // that need nothing of this normal (blended, a weight within the stop share).
             for (o, x_start) in open.iter_mut().zip((0..tw).step_by(TILE_W)) {
-                let (mut a, mut b) = (x_start, (x_start + TILE_W).min(tw));
-                if stop {
-                    while a < b && t[a] <= thr[a] {
-                        a += 1;
-                    }
-                    while b > a && t[b - 1] <= thr[b - 1] {
-                        b -= 1;
-                    }
-                }
-                *o = (a, b);
+                let span = (x_start, (x_start + TILE_W).min(tw));
+                *o = if stop {
+                    open_span(span, &t, &thr)
+                } else {
+                    span
+                };
             }
             next.fill(0);
             for j in (0..d).rev() {
@@ -930,14 +941,7 @@ impl RowContext<'_> {
                             // The span of the tile's row still open (transmittance above
                             // its stop): pixels that stopped stay stopped, so it only
                             // shrinks; empty, farther layers cannot show there.
-                            let (mut a, mut b) = open[kk];
-                            while a < b && t[a] <= thr[a] {
-                                a += 1;
-                            }
-                            while b > a && t[b - 1] <= thr[b - 1] {
-                                b -= 1;
-                            }
-                            open[kk] = (a, b);
+                            open[kk] = open_span(open[kk], &t, &thr);
                         }
                     }
                     k = k_end;

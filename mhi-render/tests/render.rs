@@ -39,6 +39,18 @@ fn random_mhi(n: usize, d: usize, w: u32, h: u32, per_layer: bool, seed: u64) ->
     Mhi::new(normals, depths, reference, color, alpha).unwrap()
 }
 
+/// `base`'s normals, depths and reference camera with other colour and alphas.
+fn with_layers(base: &Mhi, color: LayerColor, alpha: Vec<f32>) -> Mhi {
+    Mhi::new(
+        base.normals().clone(),
+        base.depths().to_vec(),
+        *base.reference(),
+        color,
+        alpha,
+    )
+    .unwrap()
+}
+
 /// The largest |a − b| over pixels and channels.
 fn largest_change(a: &Rgb32FImage, b: &Rgb32FImage) -> f32 {
     a.as_raw()
@@ -130,14 +142,7 @@ fn identity_view_of_opaque_front_layer_is_the_reference_image() {
     let LayerColor::Shared(img) = mhi.color().clone() else {
         unreachable!()
     };
-    mhi = Mhi::new(
-        mhi.normals().clone(),
-        mhi.depths().to_vec(),
-        *mhi.reference(),
-        LayerColor::Shared(img.clone()),
-        alpha,
-    )
-    .unwrap();
+    mhi = with_layers(&mhi, LayerColor::Shared(img.clone()), alpha);
     let out = render(&mhi, mhi.reference(), &RenderOptions::default()).unwrap();
     let err = largest_change(&out.image, &img);
     assert!(err < 1e-5, "{err}");
@@ -172,14 +177,7 @@ fn pruning_changes_little_and_reports_what_it_skipped() {
     let LayerColor::Shared(img) = mhi.color().clone() else {
         unreachable!()
     };
-    mhi = Mhi::new(
-        mhi.normals().clone(),
-        mhi.depths().to_vec(),
-        *mhi.reference(),
-        LayerColor::Shared(img),
-        alpha,
-    )
-    .unwrap();
+    mhi = with_layers(&mhi, LayerColor::Shared(img), alpha);
     let mut tgt = target(&mhi, 3.0, 1.0, DVec3::new(0.05, 0.0, 0.02));
     // A narrow field of view: the fronto normal wins every pixel under Hard blending, so the
     // four others are negligible and may be skipped.
@@ -326,14 +324,7 @@ fn the_error_budget_bounds_the_total_change_of_every_pixel() {
             Rgb32FImage::from_pixel(w, h, image::Rgb([v, v, v]))
         })
         .collect();
-    let mhi = Mhi::new(
-        base.normals().clone(),
-        base.depths().to_vec(),
-        *base.reference(),
-        LayerColor::PerLayer(colors),
-        alpha,
-    )
-    .unwrap();
+    let mhi = with_layers(&base, LayerColor::PerLayer(colors), alpha);
     let tgt = target(&mhi, 2.0, -1.0, DVec3::new(0.03, 0.01, 0.02));
     // Blend weights: normals 3 and 4 negligible (1e-4 each), the others share the rest.
     let mut weights = vec![0.0_f32; n * px];
@@ -447,14 +438,7 @@ fn layers_are_skipped_per_tile_where_faint_or_hidden() {
             }
         }
     }
-    let mhi = Mhi::new(
-        base.normals().clone(),
-        base.depths().to_vec(),
-        *base.reference(),
-        base.color().clone(),
-        alpha,
-    )
-    .unwrap();
+    let mhi = with_layers(&base, base.color().clone(), alpha);
     let tgt = target(&mhi, 0.5, 0.0, DVec3::new(0.01, 0.0, 0.0));
     let go = |prune| {
         render(
@@ -553,14 +537,7 @@ fn light_normals_stop_early_and_the_blend_stays_within_the_budget() {
         })
         .collect();
     let white = Rgb32FImage::from_pixel(w, h, image::Rgb([1.0, 1.0, 1.0]));
-    let mhi = Mhi::new(
-        base.normals().clone(),
-        base.depths().to_vec(),
-        *base.reference(),
-        LayerColor::Shared(white),
-        alpha,
-    )
-    .unwrap();
+    let mhi = with_layers(&base, LayerColor::Shared(white), alpha);
     let tgt = target(&mhi, 1.0, 0.5, DVec3::new(0.02, 0.0, 0.01));
     // Normal 0 from 0.9 of the blend at the left edge to 0.2 at the right; the others share
     // the rest as 1 : 2 : 3 : 4.

@@ -121,8 +121,13 @@ impl DataMix {
     }
 
     /// One training triplet: a root drawn by weight, a sequence of it uniformly, a triplet of it
-    /// by its sampling (video or sparse). Tries a few sequences before giving up with `None`.
-    pub fn sample(&self, rng: &mut impl Rng) -> Option<(&Sequence, Triplet)> {
+    /// by its sampling (video or sparse), extrapolation with chance `extrapolation_share`. Tries
+    /// a few sequences before giving up with `None`.
+    pub fn sample(
+        &self,
+        extrapolation_share: f64,
+        rng: &mut impl Rng,
+    ) -> Option<(&Sequence, Triplet)> {
         let total: f64 = self.parts.iter().map(|p| p.2).sum();
         for _ in 0..32 {
             let mut x = rng.random::<f64>() * total;
@@ -135,7 +140,7 @@ impl DataMix {
                 x -= w;
             }
             let seq = &pick.sequences[rng.random_range(0..pick.sequences.len())];
-            if let Some(t) = sample_training_triplet(seq, rng) {
+            if let Some(t) = sample_training_triplet(seq, extrapolation_share, rng) {
                 return Some((seq, t));
             }
         }
@@ -192,7 +197,7 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(0);
         let mut from_a = 0;
         for _ in 0..400 {
-            let (seq, _) = mix.sample(&mut rng).unwrap();
+            let (seq, _) = mix.sample(0.5, &mut rng).unwrap();
             assert_ne!(
                 seq.camera_file,
                 a.path().join("train").join(format!("{held}.txt"))

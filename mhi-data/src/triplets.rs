@@ -222,10 +222,23 @@ fn pick(len: usize, kind: TripletKind, rng: &mut impl Rng) -> Option<(usize, usi
     })
 }
 
-/// One training triplet in Stereo Magnification's scheme; `kind` is drawn 50/50.
-pub fn sample_training_triplet(seq: &Sequence, rng: &mut impl Rng) -> Option<Triplet> {
+/// One training triplet in Stereo Magnification's scheme; `kind` is extrapolation with chance
+/// `extrapolation_share` (Stereo Magnification: 0.5) and interpolation otherwise. A share outside
+/// [0, 1] or NaN is taken as 0.5 (callers validate it where the user gives it).
+pub fn sample_training_triplet(
+    seq: &Sequence,
+    extrapolation_share: f64,
+    rng: &mut impl Rng,
+) -> Option<Triplet> {
     let clip = sample_clip_for(seq, rng);
-    let kind = if rng.random_bool(0.5) {
+    let share = if (0.0..=1.0).contains(&extrapolation_share) {
+        extrapolation_share
+    } else {
+        0.5
+    };
+    // Drawn as "interpolation with chance 1 − share" so that share 0.5 draws exactly the
+    // triplets of runs written before the share existed (resumes stay bit-identical).
+    let kind = if rng.random_bool(1.0 - share) {
         TripletKind::Interpolation
     } else {
         TripletKind::Extrapolation
@@ -413,7 +426,7 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(7);
         let mut interp = 0;
         for _ in 0..2000 {
-            let t = sample_training_triplet(&s, &mut rng).unwrap();
+            let t = sample_training_triplet(&s, 0.5, &mut rng).unwrap();
             let (lo, hi) = (t.reference.min(t.source), t.reference.max(t.source));
             assert!(t.reference != t.source && t.target != t.reference && t.target != t.source);
             match t.kind {
@@ -429,6 +442,43 @@ mod tests {
             assert!((t.max_rotation_deg - width as f64 * 0.5).abs() < 1e-9);
         }
         assert!((900..1100).contains(&interp), "{interp}");
+    }
+
+    #[test]
+    fn the_extrapolation_share_sets_the_mix_and_half_is_the_old_draw() {
+        let s = seq(100, 0.5);
+        let count = |share: f64| {
+            let mut rng = ChaCha8Rng::seed_from_u64(9);
+            (0..2000)
+                .filter(|_| {
+                    sample_training_triplet(&s, share, &mut rng).unwrap().kind
+                        == TripletKind::Extrapolation
+                })
+                .count()
+        };
+        assert!((1400..1600).contains(&count(0.75)), "{}", count(0.75));
+        assert_eq!(count(1.0), 2000);
+        assert_eq!(count(0.0), 0);
+        // Out of range: the paper's 50/50.
+        assert!((900..1100).contains(&count(f64::NAN)));
+        // Share 0.5 consumes the generator as the unparameterised draw did (bool at p = 0.5,
+        // then the clip and the frames), so resumed runs draw the same triplets.
+        let mut a = ChaCha8Rng::seed_from_u64(3);
+        let mut b = ChaCha8Rng::seed_from_u64(3);
+        for _ in 0..50 {
+            let t = sample_training_triplet(&s, 0.5, &mut a).unwrap();
+            let clip = sample_clip_for(&s, &mut b);
+            let kind = if b.random_bool(0.5) {
+                TripletKind::Interpolation
+            } else {
+                TripletKind::Extrapolation
+            };
+            let (r, src, tg) = pick(clip.len(), kind, &mut b).unwrap();
+            assert_eq!(
+                (t.reference, t.source, t.target, t.kind),
+                (clip[r], clip[src], clip[tg], kind)
+            );
+        }
     }
 
     #[test]

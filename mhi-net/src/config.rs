@@ -82,6 +82,11 @@ pub struct TrainConfig {
     /// before the loss, so they add no error and no gradient).
     #[config(default = false)]
     pub covered_loss: bool,
+    /// The chance that a training triplet is an extrapolation (target outside the two inputs)
+    /// rather than an interpolation; Stereo Magnification draws them 50/50. Validation samples
+    /// are always drawn 50/50, so runs with different shares validate on the same triplets.
+    #[config(default = 0.5)]
+    pub extrapolation_share: f64,
 }
 
 impl TrainConfig {
@@ -109,6 +114,8 @@ impl TrainConfig {
                 .or_insert(serde_json::json!(crate::loss::VGG_FEATURE_SCALE));
             o.entry("prior").or_insert(serde_json::json!("None"));
             o.entry("covered_loss").or_insert(serde_json::json!(false));
+            o.entry("extrapolation_share")
+                .or_insert(serde_json::json!(0.5));
             // Runs written before `loss_kind` existed: the formula of the perceptual loss ended
             // with the legacy marker "(VGG16)".
             if !o.contains_key("loss_kind") {
@@ -217,6 +224,12 @@ impl TrainConfig {
             return Err(Error::Config(format!(
                 "learning rate {} must be positive",
                 self.lr
+            )));
+        }
+        if !(0.0..=1.0).contains(&self.extrapolation_share) {
+            return Err(Error::Config(format!(
+                "extrapolation_share {} must be a chance between 0 and 1",
+                self.extrapolation_share
             )));
         }
         if self.checkpoint_every == 0 {

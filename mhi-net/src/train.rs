@@ -298,7 +298,7 @@ impl Trainer {
 
     /// The training sample of `step` (deterministic).
     pub fn sample(&self, step: usize) -> crate::Result<Sample> {
-        self.sample_from(&self.train_data, step)
+        self.sample_from(&self.train_data, step, self.config.extrapolation_share)
     }
 
     /// Where validation samples come from, for the run's records.
@@ -324,16 +324,21 @@ impl Trainer {
     /// some, else drawn after training's range of steps from the training data.
     pub fn validation_sample(&self, k: usize) -> crate::Result<Sample> {
         match &self.val_data {
-            Some(v) => self.sample_from(v, k),
-            None => self.sample_from(&self.train_data, 1_000_000 + k),
+            Some(v) => self.sample_from(v, k, 0.5),
+            None => self.sample_from(&self.train_data, 1_000_000 + k, 0.5),
         }
     }
 
-    fn sample_from(&self, mix: &DataMix, step: usize) -> crate::Result<Sample> {
+    fn sample_from(
+        &self,
+        mix: &DataMix,
+        step: usize,
+        extrapolation_share: f64,
+    ) -> crate::Result<Sample> {
         let mut rng = ChaCha8Rng::seed_from_u64(
             self.config.seed ^ (step as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
         );
-        let Some((seq, t)) = mix.sample(&mut rng) else {
+        let Some((seq, t)) = mix.sample(extrapolation_share, &mut rng) else {
             return Err(Error::Config(
                 "no sequence yields a triplet (each needs 3 frames)".into(),
             ));

@@ -70,6 +70,11 @@ pub struct TrainArgs {
     /// of a --data root (e.g. `llff-6/room`); comma-separated or repeated.
     #[arg(long, value_delimiter = ',')]
     pub holdout: Vec<String>,
+    /// Chance that a training triplet is an extrapolation (the target outside the two inputs)
+    /// rather than an interpolation, between 0 and 1. Stereo Magnification uses 0.5.
+    /// Validation always draws half and half.
+    #[arg(long, default_value_t = 0.5, value_parser = parse_share)]
+    pub extrapolation_share: f64,
     /// Continue the run in --run from its latest checkpoint (other options are read from its
     /// config.json).
     #[arg(long)]
@@ -268,4 +273,17 @@ pub struct EvalArgs {
     /// The error budget of a pruned render, in 8-bit levels per pixel (1 = 1/255).
     #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub budget: f32,
+}
+
+/// A chance between 0 and 1, for `--extrapolation-share`.
+fn parse_share(s: &str) -> Result<f64, String> {
+    let x: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?} is not a number (give a chance between 0 and 1, e.g. 0.75)"))?;
+    if (0.0..=1.0).contains(&x) {
+        Ok(x)
+    } else {
+        Err(format!("{x} is not between 0 and 1"))
+    }
 }

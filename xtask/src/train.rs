@@ -84,6 +84,7 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         c.checkpoint_every = a.checkpoint_every;
         c.val_samples = a.val_samples;
         c.data = sources;
+        c.extrapolation_share = a.extrapolation_share;
         if a.prior == PriorArg::Sweep {
             c = c.with_sweep_prior();
         }

@@ -971,12 +971,30 @@ impl RowContext<'_> {
 /// transmittance is never below the exact one) composites at least this share, so `1 / share`
 /// is the most leaving out can speed a view up, whatever the plan.
 ///
+/// This is the floor of a render that bounds the blended image only. One that keeps the
+/// multi-normal images bounds each of them on its own (their blend by any weights then stays
+/// within the budget): its floor is [`needed_share_per_normal`], higher.
+///
 /// # Errors
 /// For blend weights of the wrong size.
 pub fn needed_share(mhi: &Mhi, target: &Camera, weights: &[f32], budget: f32) -> Result<f32> {
+    let px = target.width as usize * target.height as usize;
+    let weights = normalised_weights(weights, mhi.n(), px)?;
+    Ok(least_share(mhi, target, Some(&weights), budget))
+}
+
+/// [`needed_share`] for a render that keeps the multi-normal images (what the learned blend
+/// reads): every normal's image within `budget` on its own, so each pixel of each normal leaves
+/// out its faintest samples (transmittance × alpha) while their sum stays within the budget.
+pub fn needed_share_per_normal(mhi: &Mhi, target: &Camera, budget: f32) -> f32 {
+    least_share(mhi, target, None, budget)
+}
+
+/// The floor of [`needed_share`] (blend `weights`) or, without them, of
+/// [`needed_share_per_normal`].
+fn least_share(mhi: &Mhi, target: &Camera, weights: Option<&[f32]>, budget: f32) -> f32 {
     let (n, d) = (mhi.n(), mhi.d());
     let (tw, th) = (target.width as usize, target.height as usize);
-    let weights = normalised_weights(weights, n, tw * th)?;
     let hs = layer_homographies(mhi, target);
     let (rw, rh) = (
         mhi.reference().width as usize,
@@ -988,11 +1006,25 @@ pub fn needed_share(mhi: &Mhi, target: &Camera, weights: &[f32], budget: f32) ->
             let (mut total, mut needed) = (0_usize, 0_usize);
             let mut items = Vec::with_capacity(n * d);
             let v = y as f32 + 0.5;
+            // Leave out the faintest of `items` within the budget; count what stays.
+            let mut settle = |items: &mut Vec<f32>| {
+                items.sort_by(f32::total_cmp);
+                let mut spent = 0.0_f32;
+                let left_out = items
+                    .iter()
+                    .take_while(|c| {
+                        spent += **c;
+                        spent <= budget
+                    })
+                    .count();
+                total += items.len();
+                needed += items.len() - left_out;
+                items.clear();
+            };
             for x in 0..tw {
                 let u = x as f32 + 0.5;
-                items.clear();
                 for i in 0..n {
-                    let w = weights[i * tw * th + y * tw + x];
+                    let w = weights.map_or(1.0, |ws| ws[i * tw * th + y * tw + x]);
                     let mut t = 1.0_f32;
                     for j in (0..d).rev() {
                         let Some(h) = hs[i * d + j].as_ref() else {
@@ -1012,27 +1044,20 @@ pub fn needed_share(mhi: &Mhi, target: &Camera, weights: &[f32], budget: f32) ->
                         items.push(w * t * a);
                         t *= 1.0 - a;
                     }
+                    if weights.is_none() {
+                        settle(&mut items);
+                    }
                 }
-                items.sort_by(f32::total_cmp);
-                let mut spent = 0.0_f32;
-                let left_out = items
-                    .iter()
-                    .take_while(|c| {
-                        spent += **c;
-                        spent <= budget
-                    })
-                    .count();
-                total += items.len();
-                needed += items.len() - left_out;
+                settle(&mut items);
             }
             (total, needed)
         })
         .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
-    Ok(if total > 0 {
+    if total > 0 {
         needed as f32 / total as f32
     } else {
         1.0
-    })
+    }
 }
 
 /// Bilinear sample of alpha and colour at pixel-index position `(sx, sy)` (pixel centres at

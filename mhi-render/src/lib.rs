@@ -46,7 +46,7 @@ mod sweep;
 
 pub use cpu::{
     Blend, Prune, RenderOptions, RenderStats, Rendered, TILE_H, TILE_W, W_EPS, combine,
-    heuristic_weights, heuristic_weights_for, needed_share, render,
+    heuristic_weights, heuristic_weights_for, needed_share, needed_share_per_normal, render,
 };
 pub use error::{Error, Result};
 pub use mhi::{ALPHA_BLOCK, LayerColor, Mhi};

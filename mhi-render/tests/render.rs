@@ -488,6 +488,21 @@ fn the_needed_share_is_a_floor_of_what_a_pruned_render_composites() {
     let soft = mhi_render::heuristic_weights(&mhi, mhi.reference(), BlendHeuristic::Soft);
     let needed = mhi_render::needed_share(&mhi, mhi.reference(), &soft, 0.0).unwrap();
     assert!((needed - 1.0 / d as f32).abs() < 1e-6, "{needed}");
+    let per_normal = mhi_render::needed_share_per_normal(&mhi, mhi.reference(), 0.0);
+    assert!((per_normal - 1.0 / d as f32).abs() < 1e-6, "{per_normal}");
+    // Per normal, each image on its own: two normals of three faint layers (alpha 0.001) in
+    // front of an opaque far one, seen from the reference (every sample exact). A budget of
+    // 0.0025 leaves out the two faintest samples of each normal's pixel, half of them; shared
+    // by the two images it would leave out two of eight.
+    let base = random_mhi(2, 4, 12, 10, false, 4);
+    let px = 12 * 10;
+    let mut alpha = vec![0.001_f32; 2 * 4 * px];
+    for i in 0..2 {
+        alpha[i * 4 * px..(i * 4 + 1) * px].fill(1.0);
+    }
+    let faint = with_layers(&base, base.color().clone(), alpha);
+    let per_normal = mhi_render::needed_share_per_normal(&faint, faint.reference(), 0.0025);
+    assert!((per_normal - 0.5).abs() < 1e-6, "{per_normal}");
     // Weights of the wrong size are an error, not a panic.
     assert!(mhi_render::needed_share(&mhi, mhi.reference(), &soft[1..], 0.0).is_err());
 
@@ -510,6 +525,24 @@ fn the_needed_share_is_a_floor_of_what_a_pruned_render_composites() {
             pruned.stats.samples >= needed && pruned.stats.samples < 1.0,
             "composited {} of the samples, the least possible is {needed}",
             pruned.stats.samples
+        );
+        // Keeping the multi-normal images bounds each on its own: a stricter floor, which the
+        // render that keeps them still composites at least.
+        let per_normal = mhi_render::needed_share_per_normal(&mhi, &tgt, budget);
+        let kept = render(
+            &mhi,
+            &tgt,
+            &RenderOptions {
+                keep_multi_normal: true,
+                ..opts(prune)
+            },
+        )
+        .unwrap();
+        assert!(per_normal > needed, "{per_normal} vs {needed}");
+        assert!(
+            kept.stats.samples >= per_normal && kept.stats.samples < 1.0,
+            "kept the multi-normal images and composited {} of the samples, the least possible is {per_normal}",
+            kept.stats.samples
         );
     }
 }

@@ -141,17 +141,18 @@ impl Ctx<'_> {
                 let weights = b.weights.clone();
                 let mut o = blended(name, n, d, b, base);
                 if let (Method::Soft, Some((e, e_ms))) = (which, &exact_mn) {
-                    // The same MHI's multi-normal images rendered exactly, Soft-blended.
+                    // The same MHI's multi-normal images rendered exactly, Soft-blended. They
+                    // were kept (the learned blend reads them), each within the budget on its
+                    // own, so the floor is the per-normal one.
                     o.exact = Some(ExactCheck {
                         image: combine(&e.images, &weights),
                         render_ms: *e_ms,
                         stats: mn.stats,
-                        needed: mhi_render::needed_share(
+                        needed: mhi_render::needed_share_per_normal(
                             &mhi,
                             &tf.camera,
-                            &weights,
                             a.prune().budget,
-                        )?,
+                        ),
                     });
                 }
                 out.push(o);

@@ -268,4 +268,25 @@ mod tests {
             assert_eq!(old.loss_kind, kind, "{name}");
         }
     }
+
+    /// Runs written before the extrapolation share existed drew half and half: they read as
+    /// 0.5 (so they resume as they trained); a share that is not a chance is refused.
+    #[test]
+    fn the_extrapolation_share_is_migrated_and_checked() {
+        let mut c = TrainConfig::for_normals(2);
+        c.extrapolation_share = 0.75;
+        let text = serde_json::to_string(&c).unwrap();
+        let back = TrainConfig::from_json(&text, Path::new("config.json")).unwrap();
+        assert_eq!(back.extrapolation_share, 0.75);
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        v.as_object_mut().unwrap().remove("extrapolation_share");
+        let old = TrainConfig::from_json(&v.to_string(), Path::new("config.json")).unwrap();
+        assert_eq!(old.extrapolation_share, 0.5);
+        assert!(c.validate().is_ok());
+        for bad in [-0.1, 1.5, f64::NAN] {
+            c.extrapolation_share = bad;
+            let e = c.validate().unwrap_err().to_string();
+            assert!(e.contains("extrapolation_share"), "{e}");
+        }
+    }
 }

@@ -49,8 +49,9 @@ pub use synth::{
     load_scene, make_scene,
 };
 pub use triplets::{
-    CLIP_LEN, RotationBin, SPARSE_CLIP_LEN, STRIDE_RANGE, Triplet, TripletIndex, TripletKind,
-    max_rotation_deg, sample_clip, sample_clip_for, sample_training_triplet,
+    CLIP_LEN, PAPER_EXTRAPOLATION_SHARE, RotationBin, SPARSE_CLIP_LEN, STRIDE_RANGE, Triplet,
+    TripletIndex, TripletKind, max_rotation_deg, sample_clip, sample_clip_for,
+    sample_training_triplet,
 };
 
 /// Write `bytes` to `path` atomically: to a temporary file beside it, then renamed into place,

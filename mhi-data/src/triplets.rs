@@ -222,6 +222,10 @@ fn pick(len: usize, kind: TripletKind, rng: &mut impl Rng) -> Option<(usize, usi
     })
 }
 
+/// Stereo Magnification's chance that a training triplet is an extrapolation: half and half.
+/// The default of a run's `extrapolation_share`, and the draw of every validation sample.
+pub const PAPER_EXTRAPOLATION_SHARE: f64 = 0.5;
+
 /// One training triplet in Stereo Magnification's scheme; `kind` is extrapolation with chance
 /// `extrapolation_share` (Stereo Magnification: 0.5) and interpolation otherwise. A share outside
 /// [0, 1] or NaN is taken as 0.5 (callers validate it where the user gives it).
@@ -234,7 +238,7 @@ pub fn sample_training_triplet(
     let share = if (0.0..=1.0).contains(&extrapolation_share) {
         extrapolation_share
     } else {
-        0.5
+        PAPER_EXTRAPOLATION_SHARE
     };
     // Drawn as "interpolation with chance 1 − share" so that share 0.5 draws exactly the
     // triplets of runs written before the share existed (resumes stay bit-identical).

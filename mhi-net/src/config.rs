@@ -85,7 +85,7 @@ pub struct TrainConfig {
     /// The chance that a training triplet is an extrapolation (target outside the two inputs)
     /// rather than an interpolation; Stereo Magnification draws them 50/50. Validation samples
     /// are always drawn 50/50, so runs with different shares validate on the same triplets.
-    #[config(default = 0.5)]
+    #[config(default = "mhi_data::PAPER_EXTRAPOLATION_SHARE")]
     pub extrapolation_share: f64,
 }
 
@@ -115,7 +115,7 @@ impl TrainConfig {
             o.entry("prior").or_insert(serde_json::json!("None"));
             o.entry("covered_loss").or_insert(serde_json::json!(false));
             o.entry("extrapolation_share")
-                .or_insert(serde_json::json!(0.5));
+                .or_insert(serde_json::json!(mhi_data::PAPER_EXTRAPOLATION_SHARE));
             // Runs written before `loss_kind` existed: the formula of the perceptual loss ended
             // with the legacy marker "(VGG16)".
             if !o.contains_key("loss_kind") {

@@ -8,7 +8,7 @@ use std::time::Instant;
 use burn::module::Module;
 use burn::optim::{GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, Tensor};
-use mhi_data::{DataMix, DataSource, Fit, LoadedFrame, load_frame};
+use mhi_data::{DataMix, DataSource, Fit, LoadedFrame, PAPER_EXTRAPOLATION_SHARE, load_frame};
 use mhi_geom::{BlendHeuristic, NormalSet, depths_linear_in_disparity};
 use mhi_render::diff::{WarpGeometry, heuristic_weights_tensor, image_to_tensor, render_shared};
 use rand::SeedableRng;
@@ -324,8 +324,8 @@ impl Trainer {
     /// some, else drawn after training's range of steps from the training data.
     pub fn validation_sample(&self, k: usize) -> crate::Result<Sample> {
         match &self.val_data {
-            Some(v) => self.sample_from(v, k, 0.5),
-            None => self.sample_from(&self.train_data, 1_000_000 + k, 0.5),
+            Some(v) => self.sample_from(v, k, PAPER_EXTRAPOLATION_SHARE),
+            None => self.sample_from(&self.train_data, 1_000_000 + k, PAPER_EXTRAPOLATION_SHARE),
         }
     }
 

@@ -73,7 +73,7 @@ pub struct TrainArgs {
     /// Chance that a training triplet is an extrapolation (the target outside the two inputs)
     /// rather than an interpolation, between 0 and 1. Stereo Magnification uses 0.5.
     /// Validation always draws half and half.
-    #[arg(long, default_value_t = 0.5, value_parser = parse_share)]
+    #[arg(long, default_value_t = mhi_data::PAPER_EXTRAPOLATION_SHARE, value_parser = parse_share)]
     pub extrapolation_share: f64,
     /// Continue the run in --run from its latest checkpoint (other options are read from its
     /// config.json).

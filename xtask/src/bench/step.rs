@@ -65,7 +65,7 @@ pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<se
     let sync = |t: Tensor<1>| {
         let _ = t.into_data();
     };
-    let stage1_fwd = median_ms(runs, || sync(stage1.forward(volume.clone()).mean()));
+    let stage1_fwd = median_forward_ms(runs, || Some(stage1.forward(volume.clone()).mean()));
     let stage1_both = median_ms(runs, || {
         let _ = stage1.forward(volume.clone()).mean().backward();
     });
@@ -79,9 +79,9 @@ pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<se
     });
     let alpha: Tensor<4> =
         Tensor::random([n * d, 1, h, w], Distribution::Uniform(0.0, 1.0), &device).require_grad();
-    let warp_fwd = median_ms(runs, || {
+    let warp_fwd = median_forward_ms(runs, || {
         let (_, mni) = render_shared(alpha.clone(), color.clone(), &geom, soft.clone());
-        sync(mni.mean());
+        Some(mni.mean())
     });
     let warp_both = median_ms(runs, || {
         let (_, mni) = render_shared(alpha.clone(), color.clone(), &geom, soft.clone());
@@ -89,11 +89,7 @@ pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<se
     });
     let mni: Tensor<4> =
         Tensor::random([n, 3, h, w], Distribution::Uniform(0.0, 1.0), &device).require_grad();
-    let loss_fwd = median_ms(runs, || {
-        if let Ok(l) = loss.compute(mni.clone(), target.clone()) {
-            sync(l);
-        }
-    });
+    let loss_fwd = median_forward_ms(runs, || loss.compute(mni.clone(), target.clone()).ok());
     let loss_both = median_ms(runs, || {
         if let Ok(l) = loss.compute(mni.clone(), target.clone()) {
             let _ = l.backward();
@@ -135,6 +131,33 @@ pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<se
         "warp_forward_ms": warp_fwd, "warp_forward_backward_ms": warp_both,
         "loss_forward_ms": loss_fwd, "loss_forward_backward_ms": loss_both,
     }))
+}
+
+/// The median time (ms) of a forward pass on the autodiff device, after one warm-up: `f` runs
+/// the forward and returns its scalar output, timed until the output's value is read; a backward
+/// pass from that output then releases the graph, outside the timed region.
+///
+/// burn's autodiff keeps the graph of an output that never goes through `backward` (with every
+/// activation it saved) until a later backward sweeps it, so forward passes timed one after
+/// another without one keep ~80 MB each of stage 1's activations alive and write every new
+/// one into fresh pages: the first version of this bench timed stage 1's forward at 138 ms
+/// against 62 ms with the graph released (2026-12-03, docs/SPEED.md). A training step always
+/// runs its backward, so it never pays that.
+fn median_forward_ms(runs: usize, mut f: impl FnMut() -> Option<Tensor<1>>) -> f64 {
+    let mut once = || {
+        let t0 = Instant::now();
+        let out = f();
+        if let Some(out) = &out {
+            let _ = out.clone().into_data();
+        }
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        if let Some(out) = out {
+            let _ = out.backward();
+        }
+        ms
+    };
+    once(); // warm-up
+    super::median((0..runs.max(1)).map(|_| once()).collect())
 }
 
 /// Run the PyTorch twin of the training step (`../shared/peer/torch_train_step.py`) with the

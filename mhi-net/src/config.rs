@@ -87,6 +87,12 @@ pub struct TrainConfig {
     /// are always drawn 50/50, so runs with different shares validate on the same triplets.
     #[config(default = "mhi_data::PAPER_EXTRAPOLATION_SHARE")]
     pub extrapolation_share: f64,
+    /// How a training or validation frame is brought to `width × height`: stretched (Stereo
+    /// Magnification's choice; every run before this field existed) or its largest centred
+    /// region of that aspect cropped and resized, so that the network sees scenes at their
+    /// own proportions. The camera follows either way.
+    #[config(default = "mhi_data::Fit::Stretch")]
+    pub fit: mhi_data::Fit,
 }
 
 impl TrainConfig {
@@ -116,6 +122,8 @@ impl TrainConfig {
             o.entry("covered_loss").or_insert(serde_json::json!(false));
             o.entry("extrapolation_share")
                 .or_insert(serde_json::json!(mhi_data::PAPER_EXTRAPOLATION_SHARE));
+            o.entry("fit")
+                .or_insert(serde_json::json!(mhi_data::Fit::Stretch));
             // Runs written before `loss_kind` existed: the formula of the perceptual loss ended
             // with the legacy marker "(VGG16)".
             if !o.contains_key("loss_kind") {
@@ -267,6 +275,21 @@ mod tests {
             let old = TrainConfig::from_json(&v.to_string(), Path::new("config.json")).unwrap();
             assert_eq!(old.loss_kind, kind, "{name}");
         }
+    }
+
+    /// Runs written before `fit` existed stretched their frames: they read as `Stretch`; a
+    /// cropping run reads back as cropping.
+    #[test]
+    fn the_fit_is_recorded_and_migrated() {
+        let mut c = TrainConfig::for_normals(2);
+        c.fit = mhi_data::Fit::CenterCrop;
+        let text = serde_json::to_string(&c).unwrap();
+        let back = TrainConfig::from_json(&text, Path::new("config.json")).unwrap();
+        assert_eq!(back.fit, mhi_data::Fit::CenterCrop);
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        v.as_object_mut().unwrap().remove("fit");
+        let old = TrainConfig::from_json(&v.to_string(), Path::new("config.json")).unwrap();
+        assert_eq!(old.fit, mhi_data::Fit::Stretch);
     }
 
     /// Runs written before the extrapolation share existed drew half and half: they read as

@@ -8,7 +8,7 @@ use std::time::Instant;
 use burn::module::Module;
 use burn::optim::{GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, Tensor};
-use mhi_data::{DataMix, DataSource, Fit, LoadedFrame, PAPER_EXTRAPOLATION_SHARE, load_frame};
+use mhi_data::{DataMix, DataSource, LoadedFrame, PAPER_EXTRAPOLATION_SHARE, load_frame};
 use mhi_geom::{BlendHeuristic, NormalSet, depths_linear_in_disparity};
 use mhi_render::diff::{WarpGeometry, heuristic_weights_tensor, image_to_tensor, render_shared};
 use rand::SeedableRng;
@@ -351,7 +351,7 @@ impl Trainer {
         .map_err(|e| Error::Data(Box::new(e)))?;
         let size = Some((self.config.width, self.config.height));
         let load = |i: usize| {
-            load_frame(&seq.frames[i], size, Fit::Stretch).map_err(|e| Error::Data(Box::new(e)))
+            load_frame(&seq.frames[i], size, self.config.fit).map_err(|e| Error::Data(Box::new(e)))
         };
         Ok(Sample {
             reference: load(t.reference)?,

@@ -51,6 +51,16 @@ pub enum PriorArg {
     None,
 }
 
+/// How training frames meet `--size` (`--fit`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FitArg {
+    /// Resize to exactly --size, the aspect not kept (Stereo Magnification's choice).
+    Stretch,
+    /// Crop the largest centred region of --size's aspect, then resize: scenes keep their
+    /// proportions (choose --size near the aspect of the views you will render).
+    Crop,
+}
+
 /// Options of `cargo xtask train`.
 #[derive(Args, Debug)]
 pub struct TrainArgs {
@@ -75,6 +85,9 @@ pub struct TrainArgs {
     /// Validation always draws half and half.
     #[arg(long, default_value_t = mhi_data::PAPER_EXTRAPOLATION_SHARE, value_parser = parse_share)]
     pub extrapolation_share: f64,
+    /// How each training and validation frame is brought to --size (recorded in config.json).
+    #[arg(long, value_enum, default_value_t = FitArg::Stretch)]
+    pub fit: FitArg,
     /// Continue the run in --run from its latest checkpoint (other options are read from its
     /// config.json).
     #[arg(long)]

@@ -7,7 +7,7 @@ use mhi_net::loss::TrainLoss;
 use mhi_net::{TrainConfig, Trainer};
 
 use crate::common::device;
-use crate::options::{LossArg, PriorArg, TrainArgs};
+use crate::options::{FitArg, LossArg, PriorArg, TrainArgs};
 
 /// The data sources of `--data`, `--data-weight` and `--holdout`.
 pub fn sources(a: &TrainArgs) -> anyhow::Result<Vec<DataSource>> {
@@ -85,6 +85,10 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         c.val_samples = a.val_samples;
         c.data = sources;
         c.extrapolation_share = a.extrapolation_share;
+        c.fit = match a.fit {
+            FitArg::Stretch => mhi_data::Fit::Stretch,
+            FitArg::Crop => mhi_data::Fit::CenterCrop,
+        };
         if a.prior == PriorArg::Sweep {
             c = c.with_sweep_prior();
         }

@@ -231,23 +231,15 @@ fn the_block_averaged_volume_matches_stage_1s_own_pooling() {
 /// pixels stay square); both at the run's size, the camera following.
 #[test]
 fn training_frames_are_stretched_or_cropped_as_the_config_says() {
-    let d = synthetic(1, 4, (48, 48), 5);
     let mut cfg = config();
     cfg.width = 48;
     cfg.height = 24;
     let ratio = |fit: mhi_data::Fit| {
+        // A set of its own per fit: a run directory holds one run.
+        let d = synthetic(1, 4, (48, 48), 5);
         let mut c = cfg.clone();
         c.fit = fit;
-        let run = d.path().join(format!("run-{fit:?}"));
-        let t = Trainer::new(
-            c,
-            &run,
-            d.path(),
-            TrainLoss::Photometric,
-            Device::flex().autodiff(),
-        )
-        .unwrap();
-        let s = t.sample(0).unwrap();
+        let s = trainer(&c, d.path()).sample(0).unwrap();
         let cam = &s.reference.camera;
         assert_eq!((cam.width, cam.height), (48, 24));
         assert_eq!(s.reference.image.dimensions(), (48, 24));

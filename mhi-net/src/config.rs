@@ -93,6 +93,14 @@ pub struct TrainConfig {
     /// own proportions. The camera follows either way.
     #[config(default = "mhi_data::Fit::Stretch")]
     pub fit: mhi_data::Fit,
+    /// The stage-1 step from which stage 1 trains at `lr × lr_drop_factor` (`None`: `lr`
+    /// throughout). The blending network's steps keep `lr`: it starts from zero. Runs written
+    /// before this field existed read as `None`.
+    #[config(default = "None")]
+    pub lr_drop_at: Option<usize>,
+    /// What the learning rate is multiplied by from `lr_drop_at` on.
+    #[config(default = 0.1)]
+    pub lr_drop_factor: f64,
 }
 
 impl TrainConfig {
@@ -124,6 +132,8 @@ impl TrainConfig {
                 .or_insert(serde_json::json!(mhi_data::PAPER_EXTRAPOLATION_SHARE));
             o.entry("fit")
                 .or_insert(serde_json::json!(mhi_data::Fit::Stretch));
+            o.entry("lr_drop_at").or_insert(serde_json::Value::Null);
+            o.entry("lr_drop_factor").or_insert(serde_json::json!(0.1));
             // Runs written before `loss_kind` existed: the formula of the perceptual loss ended
             // with the legacy marker "(VGG16)".
             if !o.contains_key("loss_kind") {
@@ -181,6 +191,15 @@ impl TrainConfig {
         (self.stage1.scale.max(1) << self.stage1.unet.levels).max(1 << self.blend.levels)
     }
 
+    /// The learning rate of global step `step`: `lr`, times `lr_drop_factor` for the stage-1
+    /// steps from `lr_drop_at` on.
+    pub fn lr_at(&self, step: usize) -> f64 {
+        match self.lr_drop_at {
+            Some(at) if step >= at && step < self.phase1_steps => self.lr * self.lr_drop_factor,
+            _ => self.lr,
+        }
+    }
+
     /// Total number of steps of both phases.
     pub fn total_steps(&self) -> usize {
         self.phase1_steps + self.phase2_steps
@@ -232,6 +251,20 @@ impl TrainConfig {
             return Err(Error::Config(format!(
                 "learning rate {} must be positive",
                 self.lr
+            )));
+        }
+        if !(self.lr_drop_factor > 0.0 && self.lr_drop_factor <= 1.0) {
+            return Err(Error::Config(format!(
+                "lr_drop_factor {} must be in (0, 1]: it lowers the learning rate",
+                self.lr_drop_factor
+            )));
+        }
+        if let Some(at) = self.lr_drop_at
+            && at >= self.phase1_steps
+        {
+            return Err(Error::Config(format!(
+                "lr_drop_at {at} is not before the last of the {} stage-1 steps: the learning rate would never drop",
+                self.phase1_steps
             )));
         }
         if !(0.0..=1.0).contains(&self.extrapolation_share) {
@@ -290,6 +323,42 @@ mod tests {
         v.as_object_mut().unwrap().remove("fit");
         let old = TrainConfig::from_json(&v.to_string(), Path::new("config.json")).unwrap();
         assert_eq!(old.fit, mhi_data::Fit::Stretch);
+    }
+
+    /// The learning rate drops for stage-1 steps from `lr_drop_at` on and not for the blending
+    /// network's; runs written before the drop existed read as never dropping; a drop that
+    /// would never happen, or a factor that is not a drop, is refused.
+    #[test]
+    fn the_learning_rate_drops_where_the_config_says() {
+        let mut c = TrainConfig::for_normals(2);
+        c.lr = 1e-3;
+        c.phase1_steps = 100;
+        c.phase2_steps = 20;
+        assert!((0..120).all(|s| c.lr_at(s) == 1e-3));
+        c.lr_drop_at = Some(80);
+        assert!(c.validate().is_ok());
+        assert_eq!(c.lr_at(79), 1e-3);
+        assert!((80..100).all(|s| (c.lr_at(s) - 1e-4).abs() < 1e-18));
+        assert!((100..120).all(|s| c.lr_at(s) == 1e-3));
+        let text = serde_json::to_string(&c).unwrap();
+        let back = TrainConfig::from_json(&text, Path::new("config.json")).unwrap();
+        assert_eq!((back.lr_drop_at, back.lr_drop_factor), (Some(80), 0.1));
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let o = v.as_object_mut().unwrap();
+        o.remove("lr_drop_at");
+        o.remove("lr_drop_factor");
+        let old = TrainConfig::from_json(&v.to_string(), Path::new("config.json")).unwrap();
+        assert_eq!(old.lr_drop_at, None);
+        assert_eq!(old.lr_at(90), 1e-3);
+        c.lr_drop_at = Some(100);
+        let e = c.validate().unwrap_err().to_string();
+        assert!(e.contains("lr_drop_at 100"), "{e}");
+        c.lr_drop_at = Some(80);
+        for bad in [0.0, 1.5, f64::NAN] {
+            c.lr_drop_factor = bad;
+            let e = c.validate().unwrap_err().to_string();
+            assert!(e.contains("lr_drop_factor"), "{e}");
+        }
     }
 
     /// Runs written before the extrapolation share existed drew half and half: they read as

@@ -428,7 +428,9 @@ impl Trainer {
         let grads = loss.backward();
         if phase == 1 {
             let g = GradientsParams::from_grads(grads, &self.stage1);
-            self.stage1 = self.opt1.step(self.config.lr, self.stage1.clone(), g);
+            self.stage1 = self
+                .opt1
+                .step(self.config.lr_at(step), self.stage1.clone(), g);
         } else {
             let g = GradientsParams::from_grads(grads, &self.blend);
             self.blend = self.opt2.step(self.config.lr, self.blend.clone(), g);

@@ -302,3 +302,45 @@ fn an_l1_run_resumes_with_l1() {
         "resumed L1 run differs from the uninterrupted one by {diff}"
     );
 }
+
+/// Stage 1 trains at the dropped learning rate from `lr_drop_at` on: runs with and without the
+/// drop agree up to it and part after it, and a drop by a factor of 1 changes nothing.
+#[test]
+fn the_learning_rate_drop_changes_the_steps_after_it_only() {
+    let d = tempfile::tempdir().unwrap();
+    data(d.path());
+    let device = Device::flex().autodiff();
+    let run = |name: &str, drop: Option<(usize, f64)>, steps: usize| {
+        let mut c = tiny(4, 0);
+        if let Some((at, factor)) = drop {
+            c.lr_drop_at = Some(at);
+            c.lr_drop_factor = factor;
+        }
+        let mut t = Trainer::new(
+            c,
+            &d.path().join(name),
+            d.path(),
+            TrainLoss::Photometric,
+            device.clone(),
+        )
+        .unwrap();
+        for _ in 0..steps {
+            t.step().unwrap();
+        }
+        outputs(&t)
+    };
+    let max_diff = |a: &[f32], b: &[f32]| {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0_f32, f32::max)
+    };
+    let (plain2, dropped2) = (run("a2", None, 2), run("b2", Some((2, 0.1)), 2));
+    assert_eq!(max_diff(&plain2, &dropped2), 0.0, "before the drop");
+    let (plain4, dropped4) = (run("a4", None, 4), run("b4", Some((2, 0.1)), 4));
+    assert!(
+        max_diff(&plain4, &dropped4) > 1e-6,
+        "the drop did not change the steps after it"
+    );
+    assert_eq!(max_diff(&plain4, &run("c4", Some((2, 1.0)), 4)), 0.0);
+}

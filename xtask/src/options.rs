@@ -133,6 +133,14 @@ pub struct TrainArgs {
     /// Learning rate (Adam).
     #[arg(long, default_value_t = defaults().lr)]
     pub lr: f64,
+    /// From this stage-1 step on, stage 1 trains at --lr times --lr-drop-factor (a step
+    /// decay for the end of a run; the blending network keeps --lr). Must be below
+    /// --phase1-steps. Default: no drop.
+    #[arg(long)]
+    pub lr_drop_at: Option<usize>,
+    /// What --lr-drop-at multiplies the learning rate by, in (0, 1].
+    #[arg(long, default_value_t = 0.1, value_parser = parse_drop)]
+    pub lr_drop_factor: f64,
     /// Seed of the weights and of the sampled triplets.
     #[arg(long, default_value_t = defaults().seed)]
     pub seed: u64,
@@ -286,6 +294,19 @@ pub struct EvalArgs {
     /// The error budget of a pruned render, in 8-bit levels per pixel (1 = 1/255).
     #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub budget: f32,
+}
+
+/// A factor in (0, 1], for `--lr-drop-factor`.
+fn parse_drop(s: &str) -> Result<f64, String> {
+    let x: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?} is not a number (give a factor in (0, 1], e.g. 0.1)"))?;
+    if x > 0.0 && x <= 1.0 {
+        Ok(x)
+    } else {
+        Err(format!("{x} is not in (0, 1]: the factor lowers the learning rate"))
+    }
 }
 
 /// A chance between 0 and 1, for `--extrapolation-share`.

@@ -69,6 +69,14 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
                 )
             })?
     } else {
+        if let Some(at) = a.lr_drop_at
+            && at >= a.phase1_steps
+        {
+            bail!(
+                "--lr-drop-at {at} must be below --phase1-steps {}: the learning rate would never drop",
+                a.phase1_steps
+            );
+        }
         let mut c = TrainConfig::for_normals(a.normals);
         c.stage1.unet.width = a.width;
         c.stage1.share_weights = !a.separate_weights;
@@ -80,6 +88,8 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         c.phase1_steps = a.phase1_steps;
         c.phase2_steps = a.phase2_steps;
         c.lr = a.lr;
+        c.lr_drop_at = a.lr_drop_at;
+        c.lr_drop_factor = a.lr_drop_factor;
         c.seed = a.seed;
         c.checkpoint_every = a.checkpoint_every;
         c.val_samples = a.val_samples;

@@ -305,7 +305,9 @@ fn parse_drop(s: &str) -> Result<f64, String> {
     if x > 0.0 && x <= 1.0 {
         Ok(x)
     } else {
-        Err(format!("{x} is not in (0, 1]: the factor lowers the learning rate"))
+        Err(format!(
+            "{x} is not in (0, 1]: the factor lowers the learning rate"
+        ))
     }
 }
 

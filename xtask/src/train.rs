@@ -119,12 +119,16 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
                 }
             },
         };
-        Trainer::new(c, &a.run, &a.data[0], loss, device).with_context(|| {
-            format!(
-                "--run {} (pass --resume to continue a run there, or choose another --run)",
+        // Only an existing run is answered with "--resume"; any other refusal (a size the
+        // U-Nets cannot halve, a bad data source) names the run it was starting.
+        if mhi_net::RunDir::new(&a.run).config_path().exists() {
+            bail!(
+                "--run {} already holds a training run: pass --resume to continue it, or choose another --run",
                 a.run.display()
-            )
-        })?
+            );
+        }
+        Trainer::new(c, &a.run, &a.data[0], loss, device)
+            .with_context(|| format!("starting a training run in --run {}", a.run.display()))?
     };
     let cfg = trainer.config().clone();
     let lpips = mhi_net::backbone::Backbone::load(

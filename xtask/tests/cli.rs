@@ -307,6 +307,24 @@ fn train_args<'a>(run: &'a str, data: &'a str, p1: &'a str) -> Vec<&'a str> {
     ]
 }
 
+/// A training size the U-Nets cannot halve is refused naming the size, not answered with the
+/// "--resume" hint meant for a directory that already holds a run; nothing is written.
+#[test]
+fn a_bad_training_option_is_not_answered_with_resume() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let run = d.path().join("run");
+    let (r, data) = (run.to_str().unwrap(), root.to_str().unwrap());
+    let args: Vec<&str> = train_args(r, data, "2")
+        .into_iter()
+        .map(|a| if a == "16x16" { "17x17" } else { a })
+        .collect();
+    let err = fails(&args);
+    assert!(err.contains("17x17") && err.contains("divisible"), "{err}");
+    assert!(!err.contains("--resume"), "{err}");
+    assert!(!run.join("config.json").exists());
+}
+
 #[test]
 fn checkpoint_from_another_configuration_and_existing_run() {
     let d = tempfile::tempdir().unwrap();

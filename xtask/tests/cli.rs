@@ -858,6 +858,8 @@ fn failed_starts_leave_nothing_and_special_files_are_not_replaced() {
 
     let err = fails(&["bench", "--size", "16", "--planes", "2", "--runs", "0"]);
     assert!(err.contains("--runs 0"), "{err}");
+    let err = fails(&["bench", "--size", "16", "--planes", "2", "--rounds", "0"]);
+    assert!(err.contains("--rounds 0"), "{err}");
     if std::path::Path::new("/dev/full").exists() {
         let err = fails(&[
             "bench",
@@ -932,4 +934,56 @@ fn interrupted_sets_absurd_far_planes_and_methods_that_apply_to_nothing() {
         err.contains("incomplete synthetic set") && err.contains("--overwrite"),
         "{err}"
     );
+}
+
+/// With a peer, the render ratio is the median over alternating rounds of ours and the peer's:
+/// each round is recorded, and the ratio is the median of the rounds' own ratios (a stand-in
+/// peer that reports a fixed time keeps the test off PyTorch).
+#[test]
+fn the_render_ratio_is_the_median_of_alternating_rounds() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(&d.path().join("data"));
+    let peer = d.path().join("peer.py");
+    std::fs::write(
+        &peer,
+        "import json\nprint(json.dumps({\"median_ms\": 1000.0, \"torch\": \"stand-in\"}))\n",
+    )
+    .unwrap();
+    let json = d.path().join("bench.json");
+    let o = xtask(&[
+        "bench",
+        "--size",
+        "16",
+        "--planes",
+        "2",
+        "--runs",
+        "1",
+        "--rounds",
+        "3",
+        "--data",
+        root.to_str().unwrap(),
+        "--peer",
+        peer.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    for (layout, key) in [("shared", "ratio_shared"), ("per_layer", "ratio_per_layer")] {
+        let rounds = v["rounds_ms"][layout].as_array().unwrap();
+        assert_eq!(rounds.len(), 3, "{v}");
+        let mut ratios: Vec<f64> = rounds
+            .iter()
+            .map(|r| r[1].as_f64().unwrap() / r[0].as_f64().unwrap())
+            .collect();
+        assert!(rounds.iter().all(|r| r[1].as_f64() == Some(1000.0)), "{v}");
+        ratios.sort_by(f64::total_cmp);
+        let ratio = v[key].as_f64().unwrap();
+        assert!(
+            (ratio - ratios[1]).abs() <= 1e-9 * ratio,
+            "{key} {ratio} against {ratios:?}"
+        );
+    }
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("median of 3 rounds"), "{out}");
 }

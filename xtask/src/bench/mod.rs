@@ -79,6 +79,11 @@ pub struct BenchArgs {
     /// Weights cache for --train-step's VGG loss (default: $MHI_CACHE, else ~/.cache/mhi).
     #[arg(long)]
     pub cache: Option<PathBuf>,
+    /// With --peer: rounds of this renderer then the peer, alternating, each the median of
+    /// --runs. The ratio reported is the median of the rounds' ratios, with their range: on a
+    /// shared machine a swing of speed then falls on both sides of a round instead of on one.
+    #[arg(long, default_value_t = 3)]
+    pub rounds: usize,
     /// Also write {"render_ms", "torch_ms", "ratio", ...} to this JSON file.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -388,6 +393,9 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
     if a.runs == 0 {
         bail!("--runs 0: at least one timed run is needed for a median");
     }
+    if a.rounds == 0 {
+        bail!("--rounds 0: at least one round of this renderer and the peer is needed for a ratio");
+    }
     if let Some(other) = &a.compare_backend {
         let v = step::backend_agreement(&a.data, *other)?;
         if let Some(p) = &a.json {
@@ -447,7 +455,6 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
             std::hint::black_box(render(&mhi_pl, &target, &soft).expect("valid bench scene"));
         })
     });
-    drop(mhi_pl);
     let px = f64::from(size) * f64::from(size);
     let bytes = (n * d) as f64 * px * 4.0 + px * 3.0 * 4.0;
     let floor_ms = bytes / bw * 1e3;
@@ -484,33 +491,57 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
         render_ms / floor_ms
     );
     // Like for like: our shared-colour render against the peer's `--shared-colour` layout,
-    // our per-layer render against the peer's RGBA-per-layer layout.
+    // our per-layer render against the peer's RGBA-per-layer layout, in alternating rounds.
     let (mut torch_shared, mut torch_per_layer) = (None, None);
+    let (mut ratio_shared, mut ratio_per_layer) = (None, None);
+    let (mut rounds_shared, mut rounds_per_layer) = (Vec::new(), Vec::new());
     if let Some(peer) = &a.peer {
         if !peer.is_file() {
             bail!("peer renderer {} not found", peer.display());
         }
         for shared in [true, false] {
-            let (ms, version) = run_peer_render(a, peer, shared)?;
-            let ours = if shared { render_ms } else { per_layer_ms };
+            let (m, label) = if shared {
+                (&mhi, "--shared-colour")
+            } else {
+                (&mhi_pl, "RGBA per layer ")
+            };
+            let mut rounds = Vec::with_capacity(a.rounds);
+            let mut version = String::new();
+            for r in 0..a.rounds {
+                let ours = pool.install(|| {
+                    median_ms(a.runs, || {
+                        std::hint::black_box(render(m, &target, &soft).expect("valid bench scene"));
+                    })
+                });
+                let (torch, v) = run_peer_render(a, peer, shared)?;
+                version = v;
+                println!(
+                    "    {} round {}/{}: this renderer {ours:.1} ms, PyTorch {torch:.1} ms → {:.1}x",
+                    label.trim_end(),
+                    r + 1,
+                    a.rounds,
+                    torch / ours
+                );
+                rounds.push((ours, torch));
+            }
+            let ratios: Vec<f64> = rounds.iter().map(|(o, t)| t / o).collect();
+            let (lo, hi) = ratios
+                .iter()
+                .fold((f64::INFINITY, 0.0_f64), |(l, h), r| (l.min(*r), h.max(*r)));
+            let ratio = median(ratios);
+            let torch = median(rounds.iter().map(|(_, t)| *t).collect());
             println!(
-                "  PyTorch peer ({version}, {}): {ms:8.1} ms  → ratio {:.1}x",
-                if shared {
-                    "--shared-colour"
-                } else {
-                    "RGBA per layer "
-                },
-                ms / ours
+                "  PyTorch peer ({version}, {label}): {torch:8.1} ms  → ratio {ratio:.1}x (median of {} rounds, {lo:.1}–{hi:.1}x)",
+                a.rounds
             );
             if shared {
-                torch_shared = Some(ms);
+                (torch_shared, ratio_shared, rounds_shared) = (Some(torch), Some(ratio), rounds);
             } else {
-                torch_per_layer = Some(ms);
+                (torch_per_layer, ratio_per_layer, rounds_per_layer) =
+                    (Some(torch), Some(ratio), rounds);
             }
         }
     }
-    let ratio_shared = torch_shared.map(|t| t / render_ms);
-    let ratio_per_layer = torch_per_layer.map(|t| t / per_layer_ms);
     if let Some(p) = &a.json {
         let v = serde_json::json!({
             "normals": n, "planes": d, "size": size, "threads": a.threads, "runs": a.runs,
@@ -518,6 +549,7 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
             "realistic_pruning": serde_json::to_value(&real)?,
             "torch_shared_ms": torch_shared, "torch_per_layer_ms": torch_per_layer,
             "ratio_shared": ratio_shared, "ratio_per_layer": ratio_per_layer,
+            "rounds_ms": { "shared": rounds_shared, "per_layer": rounds_per_layer },
             "floor_ratio": render_ms / floor_ms,
             "floor_bytes": bytes, "bandwidth_gbs": bw / 1e9, "floor_ms": floor_ms,
         });

@@ -69,6 +69,15 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
                 )
             })?
     } else {
+        // Only an existing run is answered with "--resume"; any other refusal (a size the
+        // U-Nets cannot halve, a bad data source) names the run it was starting. Checked first, before the
+        // VGG16 weights are loaded for the loss.
+        if mhi_net::RunDir::new(&a.run).config_path().exists() {
+            bail!(
+                "--run {} already holds a training run: pass --resume to continue it, or choose another --run",
+                a.run.display()
+            );
+        }
         if let Some(at) = a.lr_drop_at
             && at >= a.phase1_steps
         {
@@ -119,14 +128,6 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
                 }
             },
         };
-        // Only an existing run is answered with "--resume"; any other refusal (a size the
-        // U-Nets cannot halve, a bad data source) names the run it was starting.
-        if mhi_net::RunDir::new(&a.run).config_path().exists() {
-            bail!(
-                "--run {} already holds a training run: pass --resume to continue it, or choose another --run",
-                a.run.display()
-            );
-        }
         Trainer::new(c, &a.run, &a.data[0], loss, device)
             .with_context(|| format!("starting a training run in --run {}", a.run.display()))?
     };

@@ -341,6 +341,19 @@ fn checkpoint_from_another_configuration_and_existing_run() {
         "{err}"
     );
     assert_eq!(std::fs::read(run.join("log.csv")).unwrap(), log);
+    // The existing run is named before the loss is set up: a perceptual loss whose VGG16
+    // weights are missing is not what the user hears about.
+    let empty = d.path().join("empty-cache");
+    let mut args: Vec<&str> = train_args(r, data, "2")
+        .into_iter()
+        .map(|a| if a == "photometric" { "perceptual" } else { a })
+        .collect();
+    args.extend(["--cache", empty.to_str().unwrap()]);
+    let err = fails(&args);
+    assert!(
+        err.contains("already holds a training run") && err.contains("--resume"),
+        "{err}"
+    );
     // A config edited to another width no longer matches the checkpoint.
     let cfg = run.join("config.json");
     let text = std::fs::read_to_string(&cfg)

@@ -49,8 +49,9 @@ pub use synth::{
     load_scene, make_scene,
 };
 pub use triplets::{
-    CLIP_LEN, PAPER_EXTRAPOLATION_SHARE, RotationBin, SPARSE_CLIP_LEN, STRIDE_RANGE, Triplet,
-    TripletIndex, TripletKind, max_rotation_deg, sample_clip, sample_clip_for,
+    CLIP_LEN, NEIGHBOUR_SOURCES, NEIGHBOUR_TARGETS, PAPER_EXTRAPOLATION_SHARE, RotationBin,
+    SPARSE_CLIP_LEN, STRIDE_RANGE, Triplet, TripletIndex, TripletKind, TripletSampling,
+    max_rotation_deg, sample_clip, sample_clip_for, sample_neighbour_triplet,
     sample_training_triplet,
 };
 

@@ -8,7 +8,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::dataset::{Dataset, Sequence, root_name};
 use crate::error::{Error, Result};
-use crate::triplets::{Triplet, sample_training_triplet};
+use crate::triplets::{
+    Triplet, TripletSampling, sample_neighbour_triplet, sample_training_triplet,
+};
 
 /// One root of a training mix, as recorded in a run's `config.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -121,10 +123,12 @@ impl DataMix {
     }
 
     /// One training triplet: a root drawn by weight, a sequence of it uniformly, a triplet of it
-    /// by its sampling (video or sparse), extrapolation with chance `extrapolation_share`. Tries
-    /// a few sequences before giving up with `None`.
+    /// by `sampling`: Stereo Magnification's clips (video or sparse), extrapolation with chance
+    /// `extrapolation_share`, or nearest views (the share unused). Tries a few sequences before
+    /// giving up with `None`.
     pub fn sample(
         &self,
+        sampling: TripletSampling,
         extrapolation_share: f64,
         rng: &mut impl Rng,
     ) -> Option<(&Sequence, Triplet)> {
@@ -140,7 +144,11 @@ impl DataMix {
                 x -= w;
             }
             let seq = &pick.sequences[rng.random_range(0..pick.sequences.len())];
-            if let Some(t) = sample_training_triplet(seq, extrapolation_share, rng) {
+            let t = match sampling {
+                TripletSampling::Clips => sample_training_triplet(seq, extrapolation_share, rng),
+                TripletSampling::Neighbours => sample_neighbour_triplet(seq, rng),
+            };
+            if let Some(t) = t {
                 return Some((seq, t));
             }
         }
@@ -197,7 +205,7 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(0);
         let mut from_a = 0;
         for _ in 0..400 {
-            let (seq, _) = mix.sample(0.5, &mut rng).unwrap();
+            let (seq, _) = mix.sample(TripletSampling::Clips, 0.5, &mut rng).unwrap();
             assert_ne!(
                 seq.camera_file,
                 a.path().join("train").join(format!("{held}.txt"))

@@ -251,6 +251,73 @@ pub fn sample_training_triplet(
     Some(make(seq, clip[r], clip[s], clip[t], kind))
 }
 
+/// How training triplets are drawn from a sequence.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub enum TripletSampling {
+    /// Stereo Magnification's clips ([`sample_training_triplet`]): frames at a random stride
+    /// for video, [`SPARSE_CLIP_LEN`] consecutive views for a sparse capture; the kind drawn
+    /// with the run's extrapolation share.
+    #[default]
+    Clips,
+    /// Nearest views by camera centre ([`sample_neighbour_triplet`]): a random reference, the
+    /// source among its [`NEIGHBOUR_SOURCES`] nearest views, the target among its
+    /// [`NEIGHBOUR_TARGETS`] nearest other than the source; the kind follows from where the
+    /// target lies. Small baselines whatever the order of the views.
+    Neighbours,
+}
+
+/// How many of the reference's nearest views a neighbour triplet's source is drawn from.
+pub const NEIGHBOUR_SOURCES: usize = 3;
+/// How many of the reference's nearest views a neighbour triplet's target is drawn from (the
+/// source excluded).
+pub const NEIGHBOUR_TARGETS: usize = 4;
+
+/// One training triplet of nearest views (see [`TripletSampling::Neighbours`]): the reference
+/// uniformly, the source uniformly among its [`NEIGHBOUR_SOURCES`] nearest views by camera
+/// centre, the target uniformly among its [`NEIGHBOUR_TARGETS`] nearest other than the source.
+/// An interpolation when the target's centre projects strictly inside the segment from the
+/// reference's centre to the source's, else an extrapolation. `None` for fewer than 3 frames
+/// or when the views' centres are not finite. Ties in distance go to the lower frame index.
+pub fn sample_neighbour_triplet(seq: &Sequence, rng: &mut impl Rng) -> Option<Triplet> {
+    let n = seq.frames.len();
+    if n < 3 {
+        return None;
+    }
+    let centre = |i: usize| seq.frames[i].row.cam_from_world.center();
+    if (0..n).any(|i| !centre(i).is_finite()) {
+        return None;
+    }
+    let r = rng.random_range(0..n);
+    let cr = centre(r);
+    let mut near: Vec<usize> = (0..n).filter(|&i| i != r).collect();
+    near.sort_by(|a, b| {
+        centre(*a)
+            .distance_squared(cr)
+            .total_cmp(&centre(*b).distance_squared(cr))
+            .then(a.cmp(b))
+    });
+    let s = near[rng.random_range(0..NEIGHBOUR_SOURCES.min(near.len()))];
+    let targets: Vec<usize> = near[..NEIGHBOUR_TARGETS.min(near.len())]
+        .iter()
+        .copied()
+        .filter(|&i| i != s)
+        .collect();
+    let t = targets[rng.random_range(0..targets.len())];
+    let (cs, ct) = (centre(s), centre(t));
+    let base = cs - cr;
+    let along = if base.length_squared() > 0.0 {
+        (ct - cr).dot(base) / base.length_squared()
+    } else {
+        f64::NAN
+    };
+    let kind = if along > 0.0 && along < 1.0 {
+        TripletKind::Interpolation
+    } else {
+        TripletKind::Extrapolation
+    };
+    Some(make(seq, r, s, t, kind))
+}
+
 /// A saved, reproducible set of evaluation triplets.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TripletIndex {
@@ -389,6 +456,57 @@ mod tests {
                 })
                 .collect(),
         }
+    }
+
+    /// Neighbour triplets follow the cameras, not the frame order: on views along a line
+    /// stored in a scrambled order, the source is among the reference's 3 nearest, the target
+    /// among its 4 nearest other than the source, the kind is where the target lies, and both
+    /// kinds occur; a draw is deterministic for its seed.
+    #[test]
+    fn neighbour_triplets_are_the_nearest_views() {
+        let order = [7_usize, 2, 9, 0, 5, 11, 3, 8, 1, 10, 4, 6];
+        let mut s = seq(order.len(), 0.0);
+        for (f, &pos) in s.frames.iter_mut().zip(&order) {
+            f.row.cam_from_world =
+                RigidTransform::new(DMat3::IDENTITY, DVec3::new(pos as f64, 0.0, 0.0)).unwrap();
+        }
+        let x = |i: usize| s.frames[i].row.cam_from_world.center().x;
+        let rank = |r: usize, i: usize| {
+            // How many views are nearer to r than i (integer positions: exact distances;
+            // ties go to the lower index, as in the sampler).
+            (0..order.len())
+                .filter(|&k| k != r && k != i)
+                .filter(|&k| {
+                    let (dk, di) = ((x(k) - x(r)).abs(), (x(i) - x(r)).abs());
+                    dk < di || (dk == di && k < i)
+                })
+                .count()
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let mut kinds = std::collections::HashSet::new();
+        for _ in 0..500 {
+            let t = sample_neighbour_triplet(&s, &mut rng).unwrap();
+            assert!(rank(t.reference, t.source) < NEIGHBOUR_SOURCES, "{t:?}");
+            let target_rank = rank(t.reference, t.target);
+            let below = usize::from(rank(t.reference, t.source) < target_rank);
+            assert!(target_rank < NEIGHBOUR_TARGETS, "{t:?}");
+            assert!(target_rank - below < NEIGHBOUR_TARGETS, "{t:?}");
+            assert_ne!(t.source, t.target);
+            assert_ne!(t.reference, t.target);
+            let (r, so, ta) = (x(t.reference), x(t.source), x(t.target));
+            let between = (ta - r) * (so - r) > 0.0 && (ta - r).abs() < (so - r).abs();
+            let want = if between {
+                TripletKind::Interpolation
+            } else {
+                TripletKind::Extrapolation
+            };
+            assert_eq!(t.kind, want, "{t:?}");
+            kinds.insert(t.kind);
+        }
+        assert_eq!(kinds.len(), 2);
+        let draw = |seed| sample_neighbour_triplet(&s, &mut ChaCha8Rng::seed_from_u64(seed));
+        assert_eq!(draw(9), draw(9));
+        assert!(sample_neighbour_triplet(&seq(2, 0.0), &mut rng).is_none());
     }
 
     #[test]

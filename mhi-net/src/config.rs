@@ -87,6 +87,11 @@ pub struct TrainConfig {
     /// are always drawn 50/50, so runs with different shares validate on the same triplets.
     #[config(default = "mhi_data::PAPER_EXTRAPOLATION_SHARE")]
     pub extrapolation_share: f64,
+    /// How training triplets are drawn: Stereo Magnification's clips (every run before this
+    /// field existed) or nearest views by camera centre, where `extrapolation_share` is unused
+    /// (the kind follows from the views). Validation always draws clips.
+    #[config(default = "mhi_data::TripletSampling::Clips")]
+    pub triplet_sampling: mhi_data::TripletSampling,
     /// How a training or validation frame is brought to `width × height`: stretched (Stereo
     /// Magnification's choice; every run before this field existed) or its largest centred
     /// region of that aspect cropped and resized, so that the network sees scenes at their
@@ -130,6 +135,8 @@ impl TrainConfig {
             o.entry("covered_loss").or_insert(serde_json::json!(false));
             o.entry("extrapolation_share")
                 .or_insert(serde_json::json!(mhi_data::PAPER_EXTRAPOLATION_SHARE));
+            o.entry("triplet_sampling")
+                .or_insert(serde_json::json!(mhi_data::TripletSampling::Clips));
             o.entry("fit")
                 .or_insert(serde_json::json!(mhi_data::Fit::Stretch));
             o.entry("lr_drop_at").or_insert(serde_json::Value::Null);
@@ -380,5 +387,20 @@ mod tests {
             let e = c.validate().unwrap_err().to_string();
             assert!(e.contains("extrapolation_share"), "{e}");
         }
+    }
+
+    /// Runs written before the triplet sampling existed drew clips: they read as `Clips` and
+    /// resume as they trained; `Neighbours` survives the round trip.
+    #[test]
+    fn the_triplet_sampling_is_migrated() {
+        let mut c = TrainConfig::for_normals(2);
+        c.triplet_sampling = mhi_data::TripletSampling::Neighbours;
+        let text = serde_json::to_string(&c).unwrap();
+        let back = TrainConfig::from_json(&text, Path::new("config.json")).unwrap();
+        assert_eq!(back.triplet_sampling, mhi_data::TripletSampling::Neighbours);
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        v.as_object_mut().unwrap().remove("triplet_sampling");
+        let old = TrainConfig::from_json(&v.to_string(), Path::new("config.json")).unwrap();
+        assert_eq!(old.triplet_sampling, mhi_data::TripletSampling::Clips);
     }
 }

@@ -8,7 +8,9 @@ use std::time::Instant;
 use burn::module::Module;
 use burn::optim::{GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, Tensor};
-use mhi_data::{DataMix, DataSource, LoadedFrame, PAPER_EXTRAPOLATION_SHARE, load_frame};
+use mhi_data::{
+    DataMix, DataSource, LoadedFrame, PAPER_EXTRAPOLATION_SHARE, TripletSampling, load_frame,
+};
 use mhi_geom::{BlendHeuristic, NormalSet, depths_linear_in_disparity};
 use mhi_render::diff::{WarpGeometry, heuristic_weights_tensor, image_to_tensor, render_shared};
 use rand::SeedableRng;
@@ -298,7 +300,12 @@ impl Trainer {
 
     /// The training sample of `step` (deterministic).
     pub fn sample(&self, step: usize) -> crate::Result<Sample> {
-        self.sample_from(&self.train_data, step, self.config.extrapolation_share)
+        self.sample_from(
+            &self.train_data,
+            step,
+            self.config.triplet_sampling,
+            self.config.extrapolation_share,
+        )
     }
 
     /// Where validation samples come from, for the run's records.
@@ -324,8 +331,15 @@ impl Trainer {
     /// some, else drawn after training's range of steps from the training data.
     pub fn validation_sample(&self, k: usize) -> crate::Result<Sample> {
         match &self.val_data {
-            Some(v) => self.sample_from(v, k, PAPER_EXTRAPOLATION_SHARE),
-            None => self.sample_from(&self.train_data, 1_000_000 + k, PAPER_EXTRAPOLATION_SHARE),
+            // Always Stereo Magnification's clips, half and half: runs that train on other
+            // triplets validate on the same ones.
+            Some(v) => self.sample_from(v, k, TripletSampling::Clips, PAPER_EXTRAPOLATION_SHARE),
+            None => self.sample_from(
+                &self.train_data,
+                1_000_000 + k,
+                TripletSampling::Clips,
+                PAPER_EXTRAPOLATION_SHARE,
+            ),
         }
     }
 
@@ -333,12 +347,13 @@ impl Trainer {
         &self,
         mix: &DataMix,
         step: usize,
+        sampling: TripletSampling,
         extrapolation_share: f64,
     ) -> crate::Result<Sample> {
         let mut rng = ChaCha8Rng::seed_from_u64(
             self.config.seed ^ (step as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
         );
-        let Some((seq, t)) = mix.sample(extrapolation_share, &mut rng) else {
+        let Some((seq, t)) = mix.sample(sampling, extrapolation_share, &mut rng) else {
             return Err(Error::Config(
                 "no sequence yields a triplet (each needs 3 frames)".into(),
             ));

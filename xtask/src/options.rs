@@ -61,6 +61,19 @@ pub enum FitArg {
     Crop,
 }
 
+/// How training triplets are drawn (`--triplets`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TripletsArg {
+    /// Stereo Magnification's clips: frames at a random stride for video, 5 consecutive views
+    /// for a sparse capture; the kind drawn with --extrapolation-share.
+    Clips,
+    /// Nearest views by camera centre: a random reference, the source among its 3 nearest
+    /// views, the target among its 4 nearest (the source excluded); the kind follows from where
+    /// the target lies, so --extrapolation-share does not apply. Small baselines whatever the
+    /// order of the views.
+    Neighbours,
+}
+
 /// Options of `cargo xtask train`.
 #[derive(Args, Debug)]
 pub struct TrainArgs {
@@ -85,6 +98,10 @@ pub struct TrainArgs {
     /// Validation always draws half and half.
     #[arg(long, default_value_t = mhi_data::PAPER_EXTRAPOLATION_SHARE, value_parser = parse_share)]
     pub extrapolation_share: f64,
+    /// How training triplets are drawn (recorded in config.json). Validation always draws
+    /// clips, half and half, so runs with either validate on the same triplets.
+    #[arg(long, value_enum, default_value_t = TripletsArg::Clips)]
+    pub triplets: TripletsArg,
     /// How each training and validation frame is brought to --size (recorded in config.json).
     #[arg(long, value_enum, default_value_t = FitArg::Stretch)]
     pub fit: FitArg,

@@ -7,7 +7,7 @@ use mhi_net::loss::TrainLoss;
 use mhi_net::{TrainConfig, Trainer};
 
 use crate::common::device;
-use crate::options::{FitArg, LossArg, PriorArg, TrainArgs};
+use crate::options::{FitArg, LossArg, PriorArg, TrainArgs, TripletsArg};
 
 /// The data sources of `--data`, `--data-weight` and `--holdout`.
 pub fn sources(a: &TrainArgs) -> anyhow::Result<Vec<DataSource>> {
@@ -104,6 +104,18 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         c.val_samples = a.val_samples;
         c.data = sources;
         c.extrapolation_share = a.extrapolation_share;
+        c.triplet_sampling = match a.triplets {
+            TripletsArg::Clips => mhi_data::TripletSampling::Clips,
+            TripletsArg::Neighbours => {
+                if a.extrapolation_share != mhi_data::PAPER_EXTRAPOLATION_SHARE {
+                    bail!(
+                        "--extrapolation-share {} has no effect with --triplets neighbours: a neighbour triplet's kind follows from where its views lie",
+                        a.extrapolation_share
+                    );
+                }
+                mhi_data::TripletSampling::Neighbours
+            }
+        };
         c.fit = match a.fit {
             FitArg::Stretch => mhi_data::Fit::Stretch,
             FitArg::Crop => mhi_data::Fit::CenterCrop,

@@ -325,6 +325,33 @@ fn a_bad_training_option_is_not_answered_with_resume() {
     assert!(!run.join("config.json").exists());
 }
 
+/// Neighbour triplets take their kind from the views, so a share of extrapolations given with
+/// them is refused naming both options; with clips the run records its sampling.
+#[test]
+fn an_extrapolation_share_with_neighbour_triplets_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let run = d.path().join("run");
+    let (r, data) = (run.to_str().unwrap(), root.to_str().unwrap());
+    let mut args = train_args(r, data, "2");
+    args.extend(["--triplets", "neighbours", "--extrapolation-share", "0.75"]);
+    let err = fails(&args);
+    assert!(
+        err.contains("--extrapolation-share 0.75") && err.contains("--triplets neighbours"),
+        "{err}"
+    );
+    assert!(!run.join("config.json").exists());
+    let mut args = train_args(r, data, "2");
+    args.extend(["--triplets", "neighbours"]);
+    let o = xtask(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let cfg = std::fs::read_to_string(run.join("config.json")).unwrap();
+    assert!(
+        cfg.contains("\"triplet_sampling\": \"Neighbours\""),
+        "{cfg}"
+    );
+}
+
 #[test]
 fn checkpoint_from_another_configuration_and_existing_run() {
     let d = tempfile::tempdir().unwrap();

@@ -52,7 +52,7 @@ pub use triplets::{
     CLIP_LEN, NEIGHBOUR_SOURCES, NEIGHBOUR_TARGETS, PAPER_EXTRAPOLATION_SHARE, RotationBin,
     SPARSE_CLIP_LEN, STRIDE_RANGE, Triplet, TripletIndex, TripletKind, TripletSampling,
     max_rotation_deg, sample_clip, sample_clip_for, sample_neighbour_triplet,
-    sample_training_triplet,
+    sample_training_triplet, sample_triplet,
 };
 
 /// Write `bytes` to `path` atomically: to a temporary file beside it, then renamed into place,

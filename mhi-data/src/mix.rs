@@ -8,9 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::dataset::{Dataset, Sequence, root_name};
 use crate::error::{Error, Result};
-use crate::triplets::{
-    Triplet, TripletSampling, sample_neighbour_triplet, sample_training_triplet,
-};
+use crate::triplets::{Triplet, TripletSampling, sample_triplet};
 
 /// One root of a training mix, as recorded in a run's `config.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -144,11 +142,7 @@ impl DataMix {
                 x -= w;
             }
             let seq = &pick.sequences[rng.random_range(0..pick.sequences.len())];
-            let t = match sampling {
-                TripletSampling::Clips => sample_training_triplet(seq, extrapolation_share, rng),
-                TripletSampling::Neighbours => sample_neighbour_triplet(seq, rng),
-            };
-            if let Some(t) = t {
+            if let Some(t) = sample_triplet(seq, sampling, extrapolation_share, rng) {
                 return Some((seq, t));
             }
         }

@@ -264,6 +264,30 @@ pub enum TripletSampling {
     /// [`NEIGHBOUR_TARGETS`] nearest other than the source; the kind follows from where the
     /// target lies. Small baselines whatever the order of the views.
     Neighbours,
+    /// By the capture ([`crate::Sequence::sampling`]): clips for video, whose consecutive
+    /// frames are near views already, and nearest views for a sparse capture, whose
+    /// consecutive views may lie far apart.
+    ByCapture,
+}
+
+/// One training triplet of `seq` drawn by `sampling` (`extrapolation_share` applies to clips
+/// only); `None` when the sequence is too short.
+pub fn sample_triplet(
+    seq: &Sequence,
+    sampling: TripletSampling,
+    extrapolation_share: f64,
+    rng: &mut impl Rng,
+) -> Option<Triplet> {
+    let neighbours = match sampling {
+        TripletSampling::Clips => false,
+        TripletSampling::Neighbours => true,
+        TripletSampling::ByCapture => seq.sampling() == crate::Sampling::Sparse,
+    };
+    if neighbours {
+        sample_neighbour_triplet(seq, rng)
+    } else {
+        sample_training_triplet(seq, extrapolation_share, rng)
+    }
 }
 
 /// How many of the reference's nearest views a neighbour triplet's source is drawn from.
@@ -507,6 +531,37 @@ mod tests {
         let draw = |seed| sample_neighbour_triplet(&s, &mut ChaCha8Rng::seed_from_u64(seed));
         assert_eq!(draw(9), draw(9));
         assert!(sample_neighbour_triplet(&seq(2, 0.0), &mut rng).is_none());
+    }
+
+    /// By capture, a sparse capture draws nearest views and video draws clips: the same
+    /// triplets as those samplers for the same seed.
+    #[test]
+    fn triplets_by_capture_follow_the_capture() {
+        let sparse = seq(12, 0.0);
+        let mut video = seq(40, 0.0);
+        for (i, f) in video.frames.iter_mut().enumerate() {
+            f.row.timestamp = i as u64 * 33_333;
+        }
+        assert_eq!(sparse.sampling(), crate::Sampling::Sparse);
+        assert_eq!(video.sampling(), crate::Sampling::Video);
+        let rng = |seed| ChaCha8Rng::seed_from_u64(seed);
+        for seed in 0..50 {
+            let by =
+                |s: &Sequence| sample_triplet(s, TripletSampling::ByCapture, 0.7, &mut rng(seed));
+            assert_eq!(
+                by(&sparse),
+                sample_neighbour_triplet(&sparse, &mut rng(seed))
+            );
+            assert_eq!(
+                by(&video),
+                sample_training_triplet(&video, 0.7, &mut rng(seed))
+            );
+        }
+        // The two samplers differ on the sparse capture (else the test above could not fail).
+        assert!((0..50).any(|seed| {
+            sample_neighbour_triplet(&sparse, &mut rng(seed))
+                != sample_training_triplet(&sparse, 0.7, &mut rng(seed))
+        }));
     }
 
     #[test]

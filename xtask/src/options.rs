@@ -72,6 +72,10 @@ pub enum TripletsArg {
     /// the target lies, so --extrapolation-share does not apply. Small baselines whatever the
     /// order of the views.
     Neighbours,
+    /// Clips for video (the synthetic scenes, RealEstate10K), nearest views for sparse
+    /// captures (LLFF, Strecha), whose consecutive views may lie far apart;
+    /// --extrapolation-share applies to the clips.
+    ByCapture,
 }
 
 /// Options of `cargo xtask train`.

@@ -115,6 +115,7 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
                 }
                 mhi_data::TripletSampling::Neighbours
             }
+            TripletsArg::ByCapture => mhi_data::TripletSampling::ByCapture,
         };
         c.fit = match a.fit {
             FitArg::Stretch => mhi_data::Fit::Stretch,

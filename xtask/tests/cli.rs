@@ -326,7 +326,7 @@ fn a_bad_training_option_is_not_answered_with_resume() {
 }
 
 /// Neighbour triplets take their kind from the views, so a share of extrapolations given with
-/// them is refused naming both options; with clips the run records its sampling.
+/// them is refused naming both options; a run records its sampling, and by capture its share.
 #[test]
 fn an_extrapolation_share_with_neighbour_triplets_is_refused() {
     let d = tempfile::tempdir().unwrap();
@@ -348,6 +348,18 @@ fn an_extrapolation_share_with_neighbour_triplets_is_refused() {
     let cfg = std::fs::read_to_string(run.join("config.json")).unwrap();
     assert!(
         cfg.contains("\"triplet_sampling\": \"Neighbours\""),
+        "{cfg}"
+    );
+    // By capture, the share applies to the clips of video and is kept.
+    let run = d.path().join("run-by-capture");
+    let mut args = train_args(run.to_str().unwrap(), data, "2");
+    args.extend(["--triplets", "by-capture", "--extrapolation-share", "0.75"]);
+    let o = xtask(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let cfg = std::fs::read_to_string(run.join("config.json")).unwrap();
+    assert!(
+        cfg.contains("\"triplet_sampling\": \"ByCapture\"")
+            && cfg.contains("\"extrapolation_share\": 0.75"),
         "{cfg}"
     );
 }

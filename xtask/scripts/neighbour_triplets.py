@@ -24,6 +24,8 @@ import json
 import math
 import os
 
+from proto_triplets import angle_deg, bin_of  # the same rotation and bins as the test index
+
 
 def pose(row):
     p = [float(v) for v in row[7:19]]
@@ -32,15 +34,6 @@ def pose(row):
     # camera centre c = -Rᵀ t
     c = [-sum(r[k][i] * t[k] for k in range(3)) for i in range(3)]
     return r, c
-
-
-def angle_deg(ra, rb):
-    tr = sum(ra[i][j] * rb[i][j] for i in range(3) for j in range(3))
-    return math.degrees(math.acos(max(-1.0, min(1.0, (tr - 1.0) / 2.0))))
-
-
-def bin_of(deg):
-    return "0-2" if deg <= 2 else "2-4" if deg <= 4 else "4-8" if deg <= 8 else ">8"
 
 
 def main():

@@ -661,27 +661,28 @@ fn render_rows_with(
         share,
         keep,
     };
-    // Rows are written in place: the blended image's and, when kept, each multi-normal
-    // image's row y.
+    // Bands of rows (a tile's height) are written in place: the blended image's and, when
+    // kept, each multi-normal image's rows.
     let mut image = Rgb32FImage::new(target.width, target.height);
     let mut multi_normal = if keep {
         vec![Rgb32FImage::new(target.width, target.height); n]
     } else {
         Vec::new()
     };
-    let row_len = (tw * 3).max(1);
-    let mut mni_rows: Vec<Vec<&mut [f32]>> = (0..th).map(|_| Vec::with_capacity(n)).collect();
+    let band_len = (tw * 3 * TILE_H).max(1);
+    let bands = th.div_ceil(TILE_H);
+    let mut mni_bands: Vec<Vec<&mut [f32]>> = (0..bands).map(|_| Vec::with_capacity(n)).collect();
     for m in &mut multi_normal {
-        for (y, r) in m.as_mut().chunks_mut(row_len).enumerate() {
-            mni_rows[y].push(r);
+        for (b, r) in m.as_mut().chunks_mut(band_len).enumerate() {
+            mni_bands[b].push(r);
         }
     }
     let done: usize = image
         .as_mut()
-        .par_chunks_mut(row_len)
-        .zip(mni_rows.par_iter_mut())
+        .par_chunks_mut(band_len)
+        .zip(mni_bands.par_iter_mut())
         .enumerate()
-        .map(|(y, (row, mni))| ctx.row(y, row, mni))
+        .map(|(b, (rows, mni))| ctx.band(b * TILE_H, rows, mni))
         .sum();
     let visible_samples = px * (0..n * d).filter(|k| hs[*k].is_some()).count();
     stats.samples = if visible_samples > 0 {
@@ -708,6 +709,51 @@ fn stop_at(tile: &TilePlan, eps: f32, share: f32) -> f32 {
     }
 }
 
+/// Ask the CPU to fetch `data[from..to]` into its caches: a hint, which changes no result.
+///
+/// An exact render of N · D layers reads, per band of rows, a few short rows of every layer
+/// (N = 5, D = 32 at 256 × 256: 40 MB of alpha a view, 1 kB a row): too short for the
+/// hardware prefetcher to see a stream, so each began with waits on memory. With every layer
+/// read from one array that stays in the cache, the same render took a third less time;
+/// prefetching the next layer's texels while one is composited got about 10 % of it back
+/// (`docs/SPEED.md`).
+#[inline(always)]
+fn prefetch(data: &[f32], from: usize, to: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let to = to.min(data.len());
+        let mut k = from.min(to);
+        while k < to {
+            // SAFETY: a prefetch never faults and changes no memory; the address is inside
+            // `data`.
+            #[allow(unsafe_code)]
+            unsafe {
+                use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+                _mm_prefetch::<_MM_HINT_T0>(data.as_ptr().add(k).cast());
+            }
+            k += 16;
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (data, from, to);
+}
+
+/// One row of a band as it is composited, normal by normal.
+struct BandRow {
+    /// The row's `y + ½`.
+    v: f32,
+    /// Colour so far, four floats a pixel (RGB and an unused one).
+    c: Vec<f32>,
+    /// Transmittance so far.
+    t: Vec<f32>,
+    /// The transmittance at which each pixel stops.
+    thr: Vec<f32>,
+    /// Per tile: the span of its pixels still open.
+    open: Vec<(usize, usize)>,
+    /// Per tile: how far its layer list (near to far) has been walked.
+    next: Vec<usize>,
+}
+
 /// What every row of a render reads.
 struct RowContext<'a> {
     mhi: &'a Mhi,
@@ -732,28 +778,31 @@ struct RowContext<'a> {
 }
 
 impl RowContext<'_> {
-    /// Target row `y`: the blended RGB row (W·3, zero on entry) into `out`, each kept
-    /// multi-normal row into `mni` (one slice a normal, or none); returns the samples
-    /// composited. Compiled twice: for the baseline x86-64 and, picked at run time where the
-    /// CPU has them, with AVX2 and FMA (the same arithmetic: Rust never fuses a
-    /// multiply and an add on its own, so both give the same bits).
-    fn row(&self, y: usize, out: &mut [f32], mni: &mut [&mut [f32]]) -> usize {
+    /// The band of target rows from `y0` (a multiple of [`TILE_H`], at most that many rows):
+    /// the blended RGB rows (W·3 each, zero on entry) into `out`, each kept multi-normal
+    /// image's rows into `mni` (one slice a normal, or none); returns the samples composited.
+    /// The rows of a band go through each layer one after the other, and while one layer is
+    /// composited the texels of the next are prefetched (see [`prefetch`]). Compiled twice:
+    /// for the baseline x86-64 and, picked at run time where the CPU has them, with AVX2 and
+    /// FMA (the same arithmetic: Rust never fuses a multiply and an add on its own, so both
+    /// give the same bits).
+    fn band(&self, y0: usize, out: &mut [f32], mni: &mut [&mut [f32]]) -> usize {
         #[cfg(target_arch = "x86_64")]
         if self.rows == Rows::Fastest
             && std::arch::is_x86_feature_detected!("avx2")
             && std::arch::is_x86_feature_detected!("fma")
         {
-            // SAFETY: `row_avx2` only needs AVX2 and FMA, which the CPU was just found to have.
+            // SAFETY: `band_avx2` only needs AVX2 and FMA, which the CPU was just found to have.
             #[allow(unsafe_code)]
-            return unsafe { self.row_avx2(y, out, mni) };
+            return unsafe { self.band_avx2(y0, out, mni) };
         }
-        self.row_generic(y, out, mni)
+        self.band_generic(y0, out, mni)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    fn row_avx2(&self, y: usize, out: &mut [f32], mni: &mut [&mut [f32]]) -> usize {
-        self.row_generic(y, out, mni)
+    fn band_avx2(&self, y0: usize, out: &mut [f32], mni: &mut [&mut [f32]]) -> usize {
+        self.band_generic(y0, out, mni)
     }
 
     /// Colour of layer `k`, read straight from the images' RGB rows (three floats per texel):
@@ -767,7 +816,7 @@ impl RowContext<'_> {
     }
 
     #[inline(always)]
-    fn row_generic(&self, y: usize, out: &mut [f32], mni: &mut [&mut [f32]]) -> usize {
+    fn band_generic(&self, y0: usize, out: &mut [f32], mni: &mut [&mut [f32]]) -> usize {
         let (mhi, hs, active, tiles, weights) =
             (self.mhi, self.hs, self.active, self.tiles, self.weights);
         let (n, d, tw) = (mhi.n(), mhi.d(), self.width);
@@ -780,15 +829,25 @@ impl RowContext<'_> {
         let tiles_x = tw.div_ceil(TILE_W);
         let color_of = |k: usize| self.color_of(k);
         let stop_of = |tile: &TilePlan| stop_at(tile, eps, share);
-        // The normal's row so far: colour (RGB and an unused fourth float a pixel) and
-        // transmittance.
-        let mut c = vec![0.0_f32; tw * 4];
-        let mut t = vec![1.0_f32; tw];
+        // Per row of the band, the normal's row so far: colour (RGB and an unused fourth
+        // float a pixel), transmittance, the transmittance at which each pixel stops, and per
+        // tile the span of its pixels still open and how far its layer list (near to far)
+        // has been walked.
+        let rows = out.len() / (3 * tw).max(1);
+        let mut band_rows: Vec<BandRow> = (0..rows)
+            .map(|r| BandRow {
+                v: (y0 + r) as f32 + 0.5,
+                c: vec![0.0_f32; tw * 4],
+                t: vec![1.0_f32; tw],
+                thr: vec![0.0_f32; tw],
+                open: vec![(0_usize, 0_usize); tiles_x],
+                next: vec![0_usize; tiles_x],
+            })
+            .collect();
+        // Sample positions of the current run (pass 1), read by pass 2 right after.
         let (mut sxs, mut sys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
         let (mut fxs, mut fys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
         let mut idx = vec![0_u32; tw];
-        // Per pixel of the row, the transmittance at which the current normal stops.
-        let mut thr = vec![0.0_f32; tw];
         let stop = eps > 0.0;
         // Without the multi-normal images only the blend is bounded: Σ_i w_i · stop_i within
         // the tile's stop share. Each kept normal spends an equal part of it, so a pixel's
@@ -797,164 +856,199 @@ impl RowContext<'_> {
         let kept = active.iter().filter(|a| **a).count();
         let weighted = stop && !keep && kept > 1;
         let mut samples = 0_usize;
-        let v = y as f32 + 0.5;
-        let band = &tiles[(y / TILE_H) * tiles_x..][..tiles_x];
+        let band = &tiles[(y0 / TILE_H) * tiles_x..][..tiles_x];
         let tile_stop: Vec<f32> = band.iter().map(stop_of).collect();
-        // Per tile of the row: the span of its pixels still open and how far its layer list
-        // (near to far) has been walked.
-        let mut open = vec![(0_usize, 0_usize); tiles_x];
-        let mut next = vec![0_usize; tiles_x];
+        // The texels (lowest, one past the highest) the last layer's runs read.
+        let mut seen = (usize::MAX, 0_usize);
         for i in 0..n {
             if !active[i] {
                 continue;
             }
-            c.fill(0.0);
-            t.fill(1.0);
-            let wrow = &weights[i * px + y * tw..i * px + (y + 1) * tw];
-            if stop {
-                for (x, (th, w)) in thr.iter_mut().zip(wrow).enumerate() {
-                    let s = tile_stop[x / TILE_W];
-                    *th = if weighted { share_of(s, kept, *w) } else { s };
+            for (r, row) in band_rows.iter_mut().enumerate() {
+                let y = y0 + r;
+                row.c.fill(0.0);
+                row.t.fill(1.0);
+                let wrow = &weights[i * px + y * tw..i * px + (y + 1) * tw];
+                if stop {
+                    for (x, (th, w)) in row.thr.iter_mut().zip(wrow).enumerate() {
+                        let s = tile_stop[x / TILE_W];
+                        *th = if weighted { share_of(s, kept, *w) } else { s };
+                    }
                 }
+                // A tile's span starts without the pixels that need nothing of this normal
+                // (blended, a weight within the stop share).
+                for (o, x_start) in row.open.iter_mut().zip((0..tw).step_by(TILE_W)) {
+                    let span = (x_start, (x_start + TILE_W).min(tw));
+                    *o = if stop {
+                        open_span(span, &row.t, &row.thr)
+                    } else {
+                        span
+                    };
+                }
+                row.next.fill(0);
             }
-            // Layers near to far across the row (each pixel still sees its layers in
-            // front-to-back order): adjacent tiles that composite layer j form one run. An
-            // exact render's runs are whole rows. A tile's span starts without the pixels
-            // that need nothing of this normal (blended, a weight within the stop share).
-            for (o, x_start) in open.iter_mut().zip((0..tw).step_by(TILE_W)) {
-                let span = (x_start, (x_start + TILE_W).min(tw));
-                *o = if stop {
-                    open_span(span, &t, &thr)
-                } else {
-                    span
-                };
-            }
-            next.fill(0);
+            // Layers near to far (each pixel still sees its layers in front-to-back order),
+            // each across every row of the band; in a row, adjacent tiles that composite
+            // layer j form one run. An exact render's runs are whole rows.
             for j in (0..d).rev() {
-                let keeps = |k: usize, next: &[usize], open: &[(usize, usize)]| {
-                    open[k].0 < open[k].1 && band[k].layers[i].get(next[k]) == Some(&j)
-                };
-                let mut k = 0;
-                while k < tiles_x {
-                    if !keeps(k, &next, &open) {
-                        k += 1;
-                        continue;
+                let (h, far) = (hs[i * d + j].unwrap_or([0.0; 9]), j == 0);
+                let alpha = mhi.alpha_layer(i, j);
+                let color = color_of(i * d + j);
+                // While this layer is composited, the next one's texels around where the last
+                // layer read are fetched: a band reads a few short rows of each of N · D
+                // layers, too short for the hardware to see a stream in.
+                if j > 0 && seen.0 < seen.1 {
+                    let (from, to) = (seen.0, seen.1 + rw + 2);
+                    prefetch(mhi.alpha_layer(i, j - 1), from, to);
+                    if let LayerColor::PerLayer(_) = mhi.color() {
+                        prefetch(color_of(i * d + j - 1), 3 * from, 3 * to);
                     }
-                    let mut k_end = k + 1;
-                    while k_end < tiles_x && keeps(k_end, &next, &open) {
-                        k_end += 1;
-                    }
-                    // From the first open pixel of the run's first tile to the last of its
-                    // last: pixels in between that stopped are passed over in pass 2.
-                    let (x0, x1) = (open[k].0, open[k_end - 1].1);
-                    let (h, far) = (hs[i * d + j].unwrap_or([0.0; 9]), j == 0);
-                    let alpha = mhi.alpha_layer(i, j);
-                    let color = color_of(i * d + j);
-                    // Pass 1 (vectorisable): sample positions of the tile's row, split
-                    // into the top-left texel index and the bilinear fractions. Invalid
-                    // samples (w ≤ ε) are sent outside the image, where they read zero.
-                    let (bx, by, bw) = (h[1] * v + h[2], h[4] * v + h[5], h[7] * v + h[8]);
-                    let (wmax, hmax) = ((rw - 1) as f32, (rh - 1) as f32);
-                    // Zipped slices, not indices: bounds checks in the loop would keep
-                    // it from being vectorised.
-                    let pass1 = sxs[x0..x1]
-                        .iter_mut()
-                        .zip(&mut sys[x0..x1])
-                        .zip(&mut fxs[x0..x1])
-                        .zip(&mut fys[x0..x1])
-                        .zip(&mut idx[x0..x1]);
-                    for (k, ((((sx_out, sy_out), fx), fy), ix)) in pass1.enumerate() {
-                        let u = (x0 + k) as i32 as f32 + 0.5;
-                        let w = h[6] * u + bw;
-                        let ok = w > W_EPS;
-                        let inv = 1.0 / if ok { w } else { 1.0 };
-                        let sx = if ok {
-                            (h[0] * u + bx) * inv - 0.5
-                        } else {
-                            -2.0
-                        };
-                        let sy = if ok {
-                            (h[3] * u + by) * inv - 0.5
-                        } else {
-                            -2.0
-                        };
-                        *sx_out = sx;
-                        *sy_out = sy;
-                        // All four taps inside: 0 ≤ sx < w − 1 and 0 ≤ sy < h − 1.
-                        let inside = sx >= 0.0 && sy >= 0.0 && sx < wmax && sy < hmax;
-                        let (xf, yf) = (floor_small(sx, inside), floor_small(sy, inside));
-                        *fx = sx - xf;
-                        *fy = sy - yf;
-                        *ix = if inside {
-                            small_to_u32(yf) * rw as u32 + small_to_u32(xf)
-                        } else {
-                            u32::MAX
-                        };
-                    }
-                    // Pass 2: bilinear fetches and front-to-back compositing. Zipped slices
-                    // and one window of alpha and of colour per sample, so that the loop
-                    // checks two bounds a sample instead of a dozen.
-                    let run = x0..x1;
-                    let pixels = t[run.clone()]
-                        .iter_mut()
-                        .zip(&thr[run.clone()])
-                        .zip(c[4 * x0..4 * x1].as_chunks_mut::<4>().0)
-                        .zip(&idx[run.clone()])
-                        .zip(fxs[run.clone()].iter().zip(&fys[run.clone()]))
-                        .zip(sxs[run.clone()].iter().zip(&sys[run]));
-                    for (((((tx, &th), cx), &ix), (&fx, &fy)), (&sx, &sy)) in pixels {
-                        if stop && *tx <= th {
+                }
+                seen = (usize::MAX, 0);
+                for row in &mut band_rows {
+                    let keeps = |k: usize, next: &[usize], open: &[(usize, usize)]| {
+                        open[k].0 < open[k].1 && band[k].layers[i].get(next[k]) == Some(&j)
+                    };
+                    let mut k = 0;
+                    while k < tiles_x {
+                        if !keeps(k, &row.next, &row.open) {
+                            k += 1;
                             continue;
                         }
-                        samples += 1;
-                        let (a, col) = if ix != u32::MAX {
-                            let i = ix as usize;
-                            let w = bilinear::weights(fx, fy);
-                            let wa = &alpha[i..i + rw + 2];
-                            let wc = &color[3 * i..3 * (i + rw) + 6];
-                            let [a] = bilinear::mix(&w, [[wa[0]], [wa[1]], [wa[rw]], [wa[rw + 1]]]);
-                            // Four floats a tap, so that the mix and the compositing run four
-                            // wide: a texel's RGB and one more float, read inside the two
-                            // texels (the right tap from the float before it, rotated). The
-                            // fourth lane is never read.
-                            let (top, bot) = (&wc[..6], &wc[3 * rw..3 * rw + 6]);
-                            let left = |t: &[f32]| [t[0], t[1], t[2], t[3]];
-                            let right = |t: &[f32]| [t[3], t[4], t[5], t[2]];
-                            let c =
-                                bilinear::mix(&w, [left(top), right(top), left(bot), right(bot)]);
-                            (a, c)
-                        } else {
-                            // Border or outside: the general sampler (zero padding).
-                            let (a, [r, g, b]) = sample(alpha, color, rw, rh, sx, sy);
-                            (a, [r, g, b, 0.0])
-                        };
-                        let a = if far { 1.0 } else { a };
-                        let ta = *tx * a;
-                        for (c, v) in cx.iter_mut().zip(col) {
-                            *c += ta * v;
+                        let mut k_end = k + 1;
+                        while k_end < tiles_x && keeps(k_end, &row.next, &row.open) {
+                            k_end += 1;
                         }
-                        *tx -= ta;
-                    }
-                    for kk in k..k_end {
-                        next[kk] += 1;
-                        if stop {
-                            // The span of the tile's row still open (transmittance above
-                            // its stop): pixels that stopped stay stopped, so it only
-                            // shrinks; empty, farther layers cannot show there.
-                            open[kk] = open_span(open[kk], &t, &thr);
+                        // From the first open pixel of the run's first tile to the last of
+                        // its last: pixels in between that stopped are passed over in pass 2.
+                        let (x0, x1) = (row.open[k].0, row.open[k_end - 1].1);
+                        // Pass 1 (vectorisable): sample positions of the tile's row, split
+                        // into the top-left texel index and the bilinear fractions. Invalid
+                        // samples (w ≤ ε) are sent outside the image, where they read zero.
+                        let v = row.v;
+                        let (bx, by, bw) = (h[1] * v + h[2], h[4] * v + h[5], h[7] * v + h[8]);
+                        let (wmax, hmax) = ((rw - 1) as f32, (rh - 1) as f32);
+                        // Zipped slices, not indices: bounds checks in the loop would keep
+                        // it from being vectorised.
+                        let pass1 = sxs[x0..x1]
+                            .iter_mut()
+                            .zip(&mut sys[x0..x1])
+                            .zip(&mut fxs[x0..x1])
+                            .zip(&mut fys[x0..x1])
+                            .zip(&mut idx[x0..x1]);
+                        for (k, ((((sx_out, sy_out), fx), fy), ix)) in pass1.enumerate() {
+                            let u = (x0 + k) as i32 as f32 + 0.5;
+                            let w = h[6] * u + bw;
+                            let ok = w > W_EPS;
+                            let inv = 1.0 / if ok { w } else { 1.0 };
+                            let sx = if ok {
+                                (h[0] * u + bx) * inv - 0.5
+                            } else {
+                                -2.0
+                            };
+                            let sy = if ok {
+                                (h[3] * u + by) * inv - 0.5
+                            } else {
+                                -2.0
+                            };
+                            *sx_out = sx;
+                            *sy_out = sy;
+                            // All four taps inside: 0 ≤ sx < w − 1 and 0 ≤ sy < h − 1.
+                            let inside = sx >= 0.0 && sy >= 0.0 && sx < wmax && sy < hmax;
+                            let (xf, yf) = (floor_small(sx, inside), floor_small(sy, inside));
+                            *fx = sx - xf;
+                            *fy = sy - yf;
+                            *ix = if inside {
+                                small_to_u32(yf) * rw as u32 + small_to_u32(xf)
+                            } else {
+                                u32::MAX
+                            };
                         }
+                        // The texels the run reads: where to prefetch the next layer.
+                        let (lo, hi) = idx[x0..x1].iter().fold((u32::MAX, 0), |(lo, hi), &i| {
+                            (lo.min(i), hi.max(i.wrapping_add(1)))
+                        });
+                        if lo < hi {
+                            seen = (seen.0.min(lo as usize), seen.1.max(hi as usize));
+                        }
+                        // Pass 2: bilinear fetches and front-to-back compositing. Zipped slices
+                        // and one window of alpha and of colour per sample, so that the loop
+                        // checks two bounds a sample instead of a dozen.
+                        let run = x0..x1;
+                        let pixels = row.t[run.clone()]
+                            .iter_mut()
+                            .zip(&row.thr[run.clone()])
+                            .zip(row.c[4 * x0..4 * x1].as_chunks_mut::<4>().0)
+                            .zip(&idx[run.clone()])
+                            .zip(fxs[run.clone()].iter().zip(&fys[run.clone()]))
+                            .zip(sxs[run.clone()].iter().zip(&sys[run]));
+                        for (((((tx, &th), cx), &ix), (&fx, &fy)), (&sx, &sy)) in pixels {
+                            if stop && *tx <= th {
+                                continue;
+                            }
+                            samples += 1;
+                            let (a, col) = if ix != u32::MAX {
+                                let i = ix as usize;
+                                let w = bilinear::weights(fx, fy);
+                                let wa = &alpha[i..i + rw + 2];
+                                let wc = &color[3 * i..3 * (i + rw) + 6];
+                                let [a] =
+                                    bilinear::mix(&w, [[wa[0]], [wa[1]], [wa[rw]], [wa[rw + 1]]]);
+                                // Four floats a tap, so that the mix and the compositing run four
+                                // wide: a texel's RGB and one more float, read inside the two
+                                // texels (the right tap from the float before it, rotated). The
+                                // fourth lane is never read.
+                                let (top, bot) = (&wc[..6], &wc[3 * rw..3 * rw + 6]);
+                                let left = |t: &[f32]| [t[0], t[1], t[2], t[3]];
+                                let right = |t: &[f32]| [t[3], t[4], t[5], t[2]];
+                                let c = bilinear::mix(
+                                    &w,
+                                    [left(top), right(top), left(bot), right(bot)],
+                                );
+                                (a, c)
+                            } else {
+                                // Border or outside: the general sampler (zero padding).
+                                let (a, [r, g, b]) = sample(alpha, color, rw, rh, sx, sy);
+                                (a, [r, g, b, 0.0])
+                            };
+                            let a = if far { 1.0 } else { a };
+                            let ta = *tx * a;
+                            for (c, v) in cx.iter_mut().zip(col) {
+                                *c += ta * v;
+                            }
+                            *tx -= ta;
+                        }
+                        for kk in k..k_end {
+                            row.next[kk] += 1;
+                            if stop {
+                                // The span of the tile's row still open (transmittance above
+                                // its stop): pixels that stopped stay stopped, so it only
+                                // shrinks; empty, farther layers cannot show there.
+                                row.open[kk] = open_span(row.open[kk], &row.t, &row.thr);
+                            }
+                        }
+                        k = k_end;
                     }
-                    k = k_end;
                 }
             }
-            for ((o, cx), w) in out.chunks_exact_mut(3).zip(c.chunks_exact(4)).zip(wrow) {
-                for k in 0..3 {
-                    o[k] += w * cx[k];
+            for (r, row) in band_rows.iter().enumerate() {
+                let y = y0 + r;
+                let wrow = &weights[i * px + y * tw..i * px + (y + 1) * tw];
+                let o_row = &mut out[r * 3 * tw..(r + 1) * 3 * tw];
+                for ((o, cx), w) in o_row
+                    .chunks_exact_mut(3)
+                    .zip(row.c.chunks_exact(4))
+                    .zip(wrow)
+                {
+                    for k in 0..3 {
+                        o[k] += w * cx[k];
+                    }
                 }
-            }
-            if keep {
-                for (m, cx) in mni[i].chunks_exact_mut(3).zip(c.chunks_exact(4)) {
-                    m.copy_from_slice(&cx[..3]);
+                if keep {
+                    let m_row = &mut mni[i][r * 3 * tw..(r + 1) * 3 * tw];
+                    for (m, cx) in m_row.chunks_exact_mut(3).zip(row.c.chunks_exact(4)) {
+                        m.copy_from_slice(&cx[..3]);
+                    }
                 }
             }
         }

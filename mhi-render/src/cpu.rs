@@ -1347,6 +1347,18 @@ mod tests {
     }
 
     #[test]
+    fn prefetch_takes_any_range_and_changes_nothing() {
+        // Empty, reversed, past the end and whole ranges: a hint never reads outside the
+        // slice (the addresses are clamped into it) and never writes.
+        let data: Vec<f32> = (0..1000).map(|i| i as f32).collect();
+        for (from, to) in [(0, 0), (10, 5), (990, 5000), (5000, 6000), (0, 1000), (3, 17)] {
+            prefetch(&data, from, to);
+            prefetch(&[], from, to);
+        }
+        assert!(data.iter().enumerate().all(|(i, v)| *v == i as f32));
+    }
+
+    #[test]
     fn floor_small_is_the_floor_of_every_position_a_render_samples() {
         // Whole numbers, the floats just below and above them, halves (where rounding to the
         // nearest ties), and a sweep of the range of positions inside a large image.

@@ -527,8 +527,10 @@ fn size_label(sizes: &[(u32, u32)]) -> String {
 }
 
 /// The comparisons the report draws, among the configurations present: learned against Soft on
-/// its own stage 1, against the sweep and against the MPI; MHI against MPI (N > 1 against N = 1
-/// at the same D) for the sweep and the oracle; the largest sweep against the nearest view.
+/// its own stage 1, against the sweep and against the MPI; the learned MPI against the sweep;
+/// MHI against MPI (N > 1 against N = 1 at the same D) for the sweep and the oracle; the largest
+/// sweep against the nearest view. A learned model meets the sweep of its N and D, or else the
+/// sweep of its N with the most planes.
 fn comparison_pairs(cfgs: &[Config]) -> Vec<(Config, Config)> {
     let has = |c: &Config| cfgs.contains(c);
     let mut out = Vec::new();
@@ -538,16 +540,24 @@ fn comparison_pairs(cfgs: &[Config]) -> Vec<(Config, Config)> {
         }
     };
     let of = |m: &str| -> Vec<Config> { cfgs.iter().filter(|c| c.0 == m).cloned().collect() };
-    for l in of("learned") {
-        push(l.clone(), ("soft".into(), l.1, l.2));
+    let sweep_for = |l: &Config| -> Option<Config> {
         let sweeps = of("sweep");
         let same = sweeps.iter().find(|s| s.1 == l.1 && s.2 == l.2);
         let any = sweeps.iter().filter(|s| s.1 == l.1).max_by_key(|s| s.2);
-        if let Some(s) = same.or(any) {
-            push(l.clone(), s.clone());
+        same.or(any).cloned()
+    };
+    for l in of("learned") {
+        push(l.clone(), ("soft".into(), l.1, l.2));
+        if let Some(s) = sweep_for(&l) {
+            push(l.clone(), s);
         }
         for m in of("mpi") {
             push(l.clone(), m);
+        }
+    }
+    for m in of("mpi") {
+        if let Some(s) = sweep_for(&m) {
+            push(m, s);
         }
     }
     for method in ["sweep", "oracle"] {
@@ -807,6 +817,8 @@ mod tests {
         assert!(p.contains(&(c("learned", 5, 8), c("soft", 5, 8))));
         assert!(p.contains(&(c("learned", 5, 8), c("sweep", 5, 32))));
         assert!(p.contains(&(c("learned", 5, 8), c("mpi", 1, 8))));
+        assert!(p.contains(&(c("mpi", 1, 8), c("sweep", 1, 32))));
+        assert!(!p.contains(&(c("mpi", 1, 8), c("sweep", 5, 32))));
         assert!(p.contains(&(c("sweep", 5, 32), c("sweep", 1, 32))));
         assert!(p.contains(&(c("sweep", 5, 32), c("nearest", 0, 0))));
         assert!(p.iter().all(|(a, b)| cfgs.contains(a) && cfgs.contains(b)));

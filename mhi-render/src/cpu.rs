@@ -1351,7 +1351,14 @@ mod tests {
         // Empty, reversed, past the end and whole ranges: a hint never reads outside the
         // slice (the addresses are clamped into it) and never writes.
         let data: Vec<f32> = (0..1000).map(|i| i as f32).collect();
-        for (from, to) in [(0, 0), (10, 5), (990, 5000), (5000, 6000), (0, 1000), (3, 17)] {
+        for (from, to) in [
+            (0, 0),
+            (10, 5),
+            (990, 5000),
+            (5000, 6000),
+            (0, 1000),
+            (3, 17),
+        ] {
             prefetch(&data, from, to);
             prefetch(&[], from, to);
         }

@@ -162,6 +162,10 @@ pub struct TrainArgs {
     /// What --lr-drop-at multiplies the learning rate by, in (0, 1].
     #[arg(long, default_value_t = 0.1, value_parser = parse_drop)]
     pub lr_drop_factor: f64,
+    /// Train without the gradient clipping (by default gradients are clipped to norm 1, a
+    /// guard against a stiff step throwing the weights to infinity); recorded in config.json.
+    #[arg(long)]
+    pub no_grad_clip: bool,
     /// Seed of the weights and of the sampled triplets.
     #[arg(long, default_value_t = defaults().seed)]
     pub seed: u64,

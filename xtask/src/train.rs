@@ -99,6 +99,9 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         c.lr = a.lr;
         c.lr_drop_at = a.lr_drop_at;
         c.lr_drop_factor = a.lr_drop_factor;
+        if a.no_grad_clip {
+            c.optimizer = c.optimizer.clone().with_grad_clipping(None);
+        }
         c.seed = a.seed;
         c.checkpoint_every = a.checkpoint_every;
         c.val_samples = a.val_samples;

@@ -166,6 +166,10 @@ pub struct TrainArgs {
     /// guard against a stiff step throwing the weights to infinity); recorded in config.json.
     #[arg(long)]
     pub no_grad_clip: bool,
+    /// Adam's epsilon, the term added to the root of the second moment (burn's default 1e-5;
+    /// PyTorch's is 1e-8); recorded in config.json.
+    #[arg(long, default_value_t = 1e-5, value_parser = parse_epsilon)]
+    pub adam_epsilon: f32,
     /// Seed of the weights and of the sampled triplets.
     #[arg(long, default_value_t = defaults().seed)]
     pub seed: u64,
@@ -322,6 +326,21 @@ pub struct EvalArgs {
 }
 
 /// A factor in (0, 1], for `--lr-drop-factor`.
+/// A positive value up to 1, for `--adam-epsilon`.
+fn parse_epsilon(s: &str) -> Result<f32, String> {
+    let x: f32 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?} is not a number (give a small positive value, e.g. 1e-8)"))?;
+    if x.is_finite() && x > 0.0 && x <= 1.0 {
+        Ok(x)
+    } else {
+        Err(format!(
+            "{x} is not in (0, 1]: Adam's epsilon keeps its division finite and must be positive"
+        ))
+    }
+}
+
 fn parse_drop(s: &str) -> Result<f64, String> {
     let x: f64 = s
         .trim()
@@ -346,5 +365,23 @@ fn parse_share(s: &str) -> Result<f64, String> {
         Ok(x)
     } else {
         Err(format!("{x} is not between 0 and 1"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn optimizer_options_refuse_what_would_break_adam() {
+        assert_eq!(parse_epsilon("1e-8"), Ok(1e-8));
+        for bad in ["0", "-1e-8", "2", "inf", "NaN", "tiny"] {
+            let e = parse_epsilon(bad).expect_err(bad);
+            assert!(e.contains(bad.trim()) || e.contains("not"), "{bad}: {e}");
+        }
+        assert_eq!(parse_drop("0.1"), Ok(0.1));
+        for bad in ["0", "1.5", "-0.1", "x"] {
+            assert!(parse_drop(bad).is_err(), "{bad}");
+        }
     }
 }

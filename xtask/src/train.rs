@@ -99,6 +99,7 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         c.lr = a.lr;
         c.lr_drop_at = a.lr_drop_at;
         c.lr_drop_factor = a.lr_drop_factor;
+        c.optimizer = c.optimizer.clone().with_epsilon(a.adam_epsilon);
         if a.no_grad_clip {
             c.optimizer = c.optimizer.clone().with_grad_clipping(None);
         }

@@ -167,6 +167,9 @@ impl TrainConfig {
                 }
                 if let Some(m) = at {
                     m.entry("residual").or_insert(serde_json::json!(false));
+                    if part.len() == 2 {
+                        m.entry("halve_planes").or_insert(serde_json::json!(false));
+                    }
                 }
             }
         }
@@ -239,6 +242,15 @@ impl TrainConfig {
             return Err(Error::Config(
                 "planes and normals must be positive and agree between the stages".into(),
             ));
+        }
+        let unet = &self.stage1.unet;
+        if unet.halve_planes && !self.planes.is_multiple_of(1 << unet.levels) {
+            return Err(Error::Config(format!(
+                "{} planes: a stage 1 that halves the plane axis {} times needs a plane count divisible by {}",
+                self.planes,
+                unet.levels,
+                1 << unet.levels
+            )));
         }
         let (channels, residual) = (self.prior.channels(), self.prior == Prior::Sweep);
         if self.stage1.unet.in_channels != channels || self.stage1.unet.residual != residual {
@@ -402,5 +414,31 @@ mod tests {
         v.as_object_mut().unwrap().remove("triplet_sampling");
         let old = TrainConfig::from_json(&v.to_string(), Path::new("config.json")).unwrap();
         assert_eq!(old.triplet_sampling, mhi_data::TripletSampling::Clips);
+    }
+
+    /// Runs written before stage 1 could halve the plane axis read as not halving it; a plane
+    /// count the halving cannot divide is refused with the numbers.
+    #[test]
+    fn plane_halving_is_migrated_and_checked() {
+        let mut c = TrainConfig::for_normals(1).with_sweep_prior();
+        c.stage1.unet.halve_planes = true;
+        c.planes = 32;
+        assert!(c.validate().is_ok());
+        let text = serde_json::to_string(&c).unwrap();
+        let back = TrainConfig::from_json(&text, Path::new("config.json")).unwrap();
+        assert!(back.stage1.unet.halve_planes);
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        v["stage1"]["unet"]
+            .as_object_mut()
+            .unwrap()
+            .remove("halve_planes");
+        let old = TrainConfig::from_json(&v.to_string(), Path::new("config.json")).unwrap();
+        assert!(!old.stage1.unet.halve_planes);
+        c.planes = 30;
+        let e = c.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("30 planes") && e.contains("divisible by 4"),
+            "{e}"
+        );
     }
 }

@@ -31,6 +31,12 @@ pub struct UNet3dConfig {
     /// correction of a prior's alpha logits) instead of through a sigmoid.
     #[config(default = false)]
     pub residual: bool,
+    /// The encoder halves the plane axis too (stride 2 in depth, as the PyTorch prototype's
+    /// U-Net does), so the bottom level sees `2^levels` planes per voxel and the network
+    /// compares planes far apart; the plane count must then be divisible by `2^levels`.
+    /// Off: only the image axes are halved (the plane axis keeps its size).
+    #[config(default = false)]
+    pub halve_planes: bool,
 }
 
 /// A 3 × k × k convolution of `[B, C, D, H, W]` with zero padding 1 on the plane axis, and
@@ -131,10 +137,11 @@ impl UNet3dConfig {
         let w = self.width;
         let ch = |l: usize| w << l;
         let bottom = ch(self.levels);
+        let sd = if self.halve_planes { 2 } else { 1 };
         UNet3d {
             stem: Block3d::new(self.in_channels, w, [1, 1, 1], 1, device),
             down: (0..self.levels)
-                .map(|l| Block3d::new(ch(l), ch(l + 1), [1, 2, 2], 1, device))
+                .map(|l| Block3d::new(ch(l), ch(l + 1), [sd, 2, 2], 1, device))
                 .collect(),
             mid: self
                 .dilations
@@ -143,8 +150,8 @@ impl UNet3dConfig {
                 .collect(),
             up: (0..self.levels)
                 .map(|l| {
-                    ConvTranspose3dConfig::new([ch(l + 1), ch(l)], [1, 2, 2])
-                        .with_stride([1, 2, 2])
+                    ConvTranspose3dConfig::new([ch(l + 1), ch(l)], [sd, 2, 2])
+                        .with_stride([sd, 2, 2])
                         .init(device)
                 })
                 .collect(),
@@ -184,7 +191,7 @@ impl UNet3d {
     ///
     /// # Shapes
     /// `[B, C, D, H, W]` → `[B, 1, D, H, W]`, in `[0, 1]` unless residual (H and W divisible
-    /// by `2^levels`)
+    /// by `2^levels`, and D too with `halve_planes`)
     pub fn forward(&self, x: Tensor<5>) -> Tensor<5> {
         let mut x = self.stem.forward(x);
         let mut skips = Vec::with_capacity(self.down.len());
@@ -481,5 +488,47 @@ mod plane_conv_tests {
             let diff: f32 = (ours - reference).abs().max().into_scalar();
             assert!(diff < 1e-4, "stride {stride} dilation {dilation}: {diff}");
         }
+    }
+}
+
+#[cfg(test)]
+mod unet_tests {
+    use super::*;
+    use burn::tensor::Distribution;
+
+    /// With `halve_planes` the U-Net keeps its output shape, and a change on the first plane
+    /// reaches the last of 16, which the plane-keeping network (±8 planes of reach) cannot.
+    #[test]
+    fn halving_the_planes_widens_the_reach_along_the_planes() {
+        let device = Device::flex();
+        let x: Tensor<5> =
+            Tensor::random([1, 6, 16, 8, 8], Distribution::Normal(0.0, 1.0), &device);
+        let mut poked = x.clone().into_data().try_to_vec::<f32>().unwrap();
+        for v in poked.iter_mut().step_by(16 * 64).take(6) {
+            *v += 5.0; // plane 0, pixel (0, 0) of every channel
+        }
+        let poked = Tensor::<5>::from_data(
+            burn::tensor::TensorData::new(poked, [1, 6, 16, 8, 8]),
+            &device,
+        );
+        for (halve, reaches) in [(false, false), (true, true)] {
+            let net = UNet3dConfig::new().with_halve_planes(halve).init(&device);
+            let (a, b) = (net.forward(x.clone()), net.forward(poked.clone()));
+            assert_eq!(a.dims(), [1, 1, 16, 8, 8]);
+            let last = |t: Tensor<5>| t.slice([0..1, 0..1, 15..16, 0..8, 0..8]);
+            let change: f32 = (last(a) - last(b)).abs().max().into_scalar();
+            assert_eq!(
+                change > 0.0,
+                reaches,
+                "halve_planes {halve}: change {change}"
+            );
+        }
+        // The residual head starts at zero with the halving too.
+        let net = UNet3dConfig::new()
+            .with_halve_planes(true)
+            .with_residual(true)
+            .init(&device);
+        let y: f32 = net.forward(x).abs().max().into_scalar();
+        assert_eq!(y, 0.0);
     }
 }

@@ -142,6 +142,11 @@ pub struct TrainArgs {
     /// Give every normal its own stage-1 network instead of sharing one.
     #[arg(long)]
     pub separate_weights: bool,
+    /// Stage 1's encoder halves the plane axis as well as the image (as the PyTorch
+    /// prototype's U-Net does): its bottom compares planes far apart. --planes must then be
+    /// divisible by 4 (two levels). Recorded in config.json.
+    #[arg(long)]
+    pub stage1_halve_planes: bool,
     /// Phase-1 steps (stage 1).
     #[arg(long, default_value_t = defaults().phase1_steps)]
     pub phase1_steps: usize,

@@ -169,6 +169,7 @@ impl TrainConfig {
                     m.entry("residual").or_insert(serde_json::json!(false));
                     if part.len() == 2 {
                         m.entry("halve_planes").or_insert(serde_json::json!(false));
+                        m.entry("norm_groups").or_insert(serde_json::json!(0));
                     }
                 }
             }
@@ -416,7 +417,8 @@ mod tests {
         assert_eq!(old.triplet_sampling, mhi_data::TripletSampling::Clips);
     }
 
-    /// Runs written before stage 1 could halve the plane axis read as not halving it; a plane
+    /// Runs written before stage 1 could halve the plane axis or use group norms read as
+    /// neither; a plane
     /// count the halving cannot divide is refused with the numbers.
     #[test]
     fn plane_halving_is_migrated_and_checked() {

@@ -37,6 +37,12 @@ pub struct UNet3dConfig {
     /// Off: only the image axes are halved (the plane axis keeps its size).
     #[config(default = false)]
     pub halve_planes: bool,
+    /// How each convolution's output is normalised: 0, over its channels at every voxel (a
+    /// layer norm); G > 0, as a group norm over `min(G, C)` groups of channels, each over the
+    /// whole volume (the PyTorch prototype's `GroupNorm(min(4, C), C)`), which keeps how
+    /// strong a voxel's response is against the rest of the volume. Same parameters either way.
+    #[config(default = 0)]
+    pub norm_groups: usize,
 }
 
 /// A 3 × k × k convolution of `[B, C, D, H, W]` with zero padding 1 on the plane axis, and
@@ -88,16 +94,49 @@ pub fn conv3d_planes_as_2d(
 /// The layer norms' epsilon (burn's default, named: the module keeps its own private).
 const NORM_EPSILON: f64 = 1e-5;
 
-/// Convolution, layer normalisation over channels, ReLU.
+/// Convolution, normalisation (over channels, or in groups over the volume), ReLU.
 #[derive(Module, Debug)]
 pub struct Block3d {
     conv: Conv3d,
     norm: LayerNorm,
+    /// 0: layer norm over channels; else the number of channel groups of a group norm.
+    groups: usize,
+}
+
+/// Group normalisation of `x` (`[B, C, D, H, W]`) over `groups` groups of channels, each over
+/// the whole volume (biased variance, as PyTorch's `GroupNorm`), then `norm`'s per-channel
+/// scale and shift. `C` must be divisible by `groups`.
+fn group_norm(norm: &LayerNorm, groups: usize, x: Tensor<5>) -> Tensor<5> {
+    let [b, c, d, h, w] = x.dims();
+    let g = x.reshape([b, groups, (c / groups) * d * h * w]);
+    let centred = g.clone() - g.mean_dim(2);
+    let var = centred.clone().square().mean_dim(2);
+    let y = (centred / (var + NORM_EPSILON).sqrt()).reshape([b, c, d, h, w]);
+    let y = y * norm.gamma.val().reshape([1, c, 1, 1, 1]);
+    match &norm.beta {
+        Some(beta) => y + beta.val().reshape([1, c, 1, 1, 1]),
+        None => y,
+    }
 }
 
 impl Block3d {
-    fn new(cin: usize, cout: usize, stride: [usize; 3], dilation: usize, device: &Device) -> Self {
+    fn new(
+        cin: usize,
+        cout: usize,
+        stride: [usize; 3],
+        dilation: usize,
+        groups: usize,
+        device: &Device,
+    ) -> Self {
+        let groups = match groups {
+            0 => 0,
+            g => (1..=g.min(cout))
+                .rev()
+                .find(|k| cout.is_multiple_of(*k))
+                .unwrap_or(1),
+        };
         Self {
+            groups,
             conv: Conv3dConfig::new([cin, cout], [3, 3, 3])
                 .with_stride(stride)
                 .with_dilation([1, dilation, dilation])
@@ -113,6 +152,9 @@ impl Block3d {
     /// `[B, Cin, D, H, W]` → `[B, Cout, D, H/stride, W/stride]`
     fn forward(&self, x: Tensor<5>) -> Tensor<5> {
         let x = crate::fastconv::forward(&self.conv, x);
+        if self.groups > 0 {
+            return relu(group_norm(&self.norm, self.groups, x));
+        }
         // Layer norm over channels: channels last, normalise, back.
         relu(crate::fastconv::channel_norm(&self.norm, NORM_EPSILON, x))
     }
@@ -138,15 +180,16 @@ impl UNet3dConfig {
         let ch = |l: usize| w << l;
         let bottom = ch(self.levels);
         let sd = if self.halve_planes { 2 } else { 1 };
+        let ng = self.norm_groups;
         UNet3d {
-            stem: Block3d::new(self.in_channels, w, [1, 1, 1], 1, device),
+            stem: Block3d::new(self.in_channels, w, [1, 1, 1], 1, ng, device),
             down: (0..self.levels)
-                .map(|l| Block3d::new(ch(l), ch(l + 1), [sd, 2, 2], 1, device))
+                .map(|l| Block3d::new(ch(l), ch(l + 1), [sd, 2, 2], 1, ng, device))
                 .collect(),
             mid: self
                 .dilations
                 .iter()
-                .map(|&d| Block3d::new(bottom, bottom, [1, 1, 1], d, device))
+                .map(|&d| Block3d::new(bottom, bottom, [1, 1, 1], d, ng, device))
                 .collect(),
             up: (0..self.levels)
                 .map(|l| {
@@ -156,7 +199,7 @@ impl UNet3dConfig {
                 })
                 .collect(),
             dec: (0..self.levels)
-                .map(|l| Block3d::new(2 * ch(l), ch(l), [1, 1, 1], 1, device))
+                .map(|l| Block3d::new(2 * ch(l), ch(l), [1, 1, 1], 1, ng, device))
                 .collect(),
             head: zeroed_if(
                 self.residual,
@@ -530,5 +573,47 @@ mod unet_tests {
             .init(&device);
         let y: f32 = net.forward(x).abs().max().into_scalar();
         assert_eq!(y, 0.0);
+    }
+
+    /// The group norm equals PyTorch's `GroupNorm` formula computed in f64 (biased variance
+    /// over each group's channels and voxels), with the per-channel scale and shift; a layer
+    /// norm over channels would differ.
+    #[test]
+    fn group_norm_matches_an_f64_reference() {
+        let device = Device::flex();
+        let (b, c, d, h, w, g) = (2, 8, 3, 4, 5, 4);
+        let x: Tensor<5> = Tensor::random([b, c, d, h, w], Distribution::Normal(1.0, 2.0), &device);
+        let mut norm = LayerNormConfig::new(c).init(&device);
+        let gamma: Vec<f32> = (0..c).map(|i| 0.5 + i as f32 * 0.25).collect();
+        let beta: Vec<f32> = (0..c).map(|i| i as f32 * 0.1 - 0.3).collect();
+        norm.gamma =
+            burn::module::Param::from_tensor(Tensor::from_floats(gamma.as_slice(), &device));
+        norm.beta = Some(burn::module::Param::from_tensor(Tensor::from_floats(
+            beta.as_slice(),
+            &device,
+        )));
+        let xs = x.clone().into_data().try_to_vec::<f32>().unwrap();
+        let ours = group_norm(&norm, g, x)
+            .into_data()
+            .try_to_vec::<f32>()
+            .unwrap();
+        let vox = d * h * w;
+        let per_group = (c / g) * vox;
+        let mut worst = 0.0_f64;
+        for bi in 0..b {
+            for gi in 0..g {
+                let at = bi * c * vox + gi * per_group;
+                let vals: Vec<f64> = xs[at..at + per_group].iter().map(|&v| v as f64).collect();
+                let mean = vals.iter().sum::<f64>() / per_group as f64;
+                let var = vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / per_group as f64;
+                for (k, v) in vals.iter().enumerate() {
+                    let ch = gi * (c / g) + k / vox;
+                    let want = (v - mean) / (var + NORM_EPSILON).sqrt() * gamma[ch] as f64
+                        + beta[ch] as f64;
+                    worst = worst.max((ours[at + k] as f64 - want).abs());
+                }
+            }
+        }
+        assert!(worst < 1e-4, "largest difference {worst}");
     }
 }

@@ -147,6 +147,12 @@ pub struct TrainArgs {
     /// divisible by 4 (two levels). Recorded in config.json.
     #[arg(long)]
     pub stage1_halve_planes: bool,
+    /// Stage 1 normalises each convolution's output as a group norm over this many channel
+    /// groups (at most the channels), each over the whole volume, as the PyTorch prototype's
+    /// U-Net does (4); 0 (the default) normalises over the channels at every voxel. Recorded in
+    /// config.json.
+    #[arg(long, default_value_t = 0)]
+    pub stage1_norm_groups: usize,
     /// Phase-1 steps (stage 1).
     #[arg(long, default_value_t = defaults().phase1_steps)]
     pub phase1_steps: usize,

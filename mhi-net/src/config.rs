@@ -418,8 +418,7 @@ mod tests {
     }
 
     /// Runs written before stage 1 could halve the plane axis or use group norms read as
-    /// neither; a plane
-    /// count the halving cannot divide is refused with the numbers.
+    /// neither; a plane count the halving cannot divide is refused with the numbers.
     #[test]
     fn plane_halving_is_migrated_and_checked() {
         let mut c = TrainConfig::for_normals(1).with_sweep_prior();
@@ -434,8 +433,13 @@ mod tests {
             .as_object_mut()
             .unwrap()
             .remove("halve_planes");
+        v["stage1"]["unet"]
+            .as_object_mut()
+            .unwrap()
+            .remove("norm_groups");
         let old = TrainConfig::from_json(&v.to_string(), Path::new("config.json")).unwrap();
         assert!(!old.stage1.unet.halve_planes);
+        assert_eq!(old.stage1.unet.norm_groups, 0);
         c.planes = 30;
         let e = c.validate().unwrap_err().to_string();
         assert!(

@@ -38,9 +38,11 @@ pub struct UNet3dConfig {
     #[config(default = false)]
     pub halve_planes: bool,
     /// How each convolution's output is normalised: 0, over its channels at every voxel (a
-    /// layer norm); G > 0, as a group norm over `min(G, C)` groups of channels, each over the
-    /// whole volume (the PyTorch prototype's `GroupNorm(min(4, C), C)`), which keeps how
-    /// strong a voxel's response is against the rest of the volume. Same parameters either way.
+    /// layer norm); G > 0, as a group norm over groups of channels, each over the whole volume
+    /// (the PyTorch prototype's `GroupNorm(min(4, C), C)`), which keeps how strong a voxel's
+    /// response is against the rest of the volume. A convolution with C channels uses the
+    /// largest divisor of C up to G groups (`min(G, C)` for the widths 8, 16, 32). Same
+    /// parameters either way.
     #[config(default = 0)]
     pub norm_groups: usize,
 }

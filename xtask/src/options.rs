@@ -336,34 +336,38 @@ pub struct EvalArgs {
     pub budget: f32,
 }
 
-/// A factor in (0, 1], for `--lr-drop-factor`.
-/// A positive value up to 1, for `--adam-epsilon`.
-fn parse_epsilon(s: &str) -> Result<f32, String> {
-    let x: f32 = s
-        .trim()
-        .parse()
-        .map_err(|_| format!("{s:?} is not a number (give a small positive value, e.g. 1e-8)"))?;
-    if x.is_finite() && x > 0.0 && x <= 1.0 {
-        Ok(x)
-    } else {
-        Err(format!(
-            "{x} is not in (0, 1]: Adam's epsilon keeps its division finite and must be positive"
-        ))
-    }
-}
-
-fn parse_drop(s: &str) -> Result<f64, String> {
+/// A number in (0, 1]: `give` says what to write when `s` is not a number, `why` why the
+/// range.
+fn parse_unit(s: &str, give: &str, why: &str) -> Result<f64, String> {
     let x: f64 = s
         .trim()
         .parse()
-        .map_err(|_| format!("{s:?} is not a number (give a factor in (0, 1], e.g. 0.1)"))?;
+        .map_err(|_| format!("{s:?} is not a number (give {give})"))?;
     if x > 0.0 && x <= 1.0 {
         Ok(x)
     } else {
-        Err(format!(
-            "{x} is not in (0, 1]: the factor lowers the learning rate"
-        ))
+        Err(format!("{x} is not in (0, 1]: {why}"))
     }
+}
+
+/// A positive value up to 1 (and above zero in f32), for `--adam-epsilon`.
+fn parse_epsilon(s: &str) -> Result<f32, String> {
+    let why = "Adam's epsilon keeps its division finite and must be positive";
+    let x = parse_unit(s, "a small positive value, e.g. 1e-8", why)? as f32;
+    if x > 0.0 {
+        Ok(x)
+    } else {
+        Err(format!("{s} is 0 in single precision: {why}"))
+    }
+}
+
+/// A factor in (0, 1], for `--lr-drop-factor`.
+fn parse_drop(s: &str) -> Result<f64, String> {
+    parse_unit(
+        s,
+        "a factor in (0, 1], e.g. 0.1",
+        "the factor lowers the learning rate",
+    )
 }
 
 /// A chance between 0 and 1, for `--extrapolation-share`.

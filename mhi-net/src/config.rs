@@ -170,6 +170,8 @@ impl TrainConfig {
                     if part.len() == 2 {
                         m.entry("halve_planes").or_insert(serde_json::json!(false));
                         m.entry("norm_groups").or_insert(serde_json::json!(0));
+                        m.entry("prototype_layout")
+                            .or_insert(serde_json::json!(false));
                     }
                 }
             }
@@ -417,8 +419,8 @@ mod tests {
         assert_eq!(old.triplet_sampling, mhi_data::TripletSampling::Clips);
     }
 
-    /// Runs written before stage 1 could halve the plane axis or use group norms read as
-    /// neither; a plane count the halving cannot divide is refused with the numbers.
+    /// Runs written before stage 1 could halve the plane axis, use group norms or take the
+    /// prototype's layout read as none of them; a plane count the halving cannot divide is refused with the numbers.
     #[test]
     fn plane_halving_is_migrated_and_checked() {
         let mut c = TrainConfig::for_normals(1).with_sweep_prior();
@@ -437,9 +439,17 @@ mod tests {
             .as_object_mut()
             .unwrap()
             .remove("norm_groups");
+        let unet = v["stage1"]["unet"].as_object_mut().unwrap();
+        unet.insert("norm_groups".into(), serde_json::json!(4));
+        let again = TrainConfig::from_json(&v.to_string(), Path::new("config.json")).unwrap();
+        assert_eq!(again.stage1.unet.norm_groups, 4, "a present field is kept");
+        let unet = v["stage1"]["unet"].as_object_mut().unwrap();
+        unet.remove("norm_groups");
+        unet.remove("prototype_layout");
         let old = TrainConfig::from_json(&v.to_string(), Path::new("config.json")).unwrap();
         assert!(!old.stage1.unet.halve_planes);
         assert_eq!(old.stage1.unet.norm_groups, 0);
+        assert!(!old.stage1.unet.prototype_layout);
         c.planes = 30;
         let e = c.validate().unwrap_err().to_string();
         assert!(

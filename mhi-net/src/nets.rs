@@ -45,6 +45,15 @@ pub struct UNet3dConfig {
     /// parameters either way.
     #[config(default = 0)]
     pub norm_groups: usize,
+    /// The PyTorch prototype's layout: two convolutions per level (the stem and every
+    /// downsampling convolution are followed by a second one), no residual bottom beyond
+    /// `dilations` (set them empty for the prototype's), each decoder level upsampling by
+    /// linear interpolation (trilinear with `halve_planes`, half-pixel centres, edges
+    /// repeated, as PyTorch's `interpolate(align_corners=False)`) before its convolution
+    /// instead of through a transposed convolution, and a 3 × 3 × 3 head instead of 1 × 1 × 1.
+    /// Off: one convolution per level, transposed-convolution upsampling, 1 × 1 × 1 head.
+    #[config(default = false)]
+    pub prototype_layout: bool,
 }
 
 /// A 3 × k × k convolution of `[B, C, D, H, W]` with zero padding 1 on the plane axis, and
@@ -168,11 +177,55 @@ impl Block3d {
 pub struct UNet3d {
     stem: Block3d,
     down: Vec<Block3d>,
+    /// The prototype layout's second convolution of every level (after the stem, then after
+    /// each downsampling convolution); empty otherwise.
+    again: Vec<Block3d>,
     mid: Vec<Block3d>,
+    /// Transposed convolutions of the decoder; empty in the prototype layout, which
+    /// interpolates instead.
     up: Vec<ConvTranspose3d>,
     dec: Vec<Block3d>,
     head: Conv3d,
     residual: bool,
+    /// The plane axis is halved by the encoder (and interpolated back by the prototype
+    /// layout's decoder).
+    halve_planes: bool,
+}
+
+/// Doubles the size of axis `axis` (2, 3 or 4) of `[B, C, D, H, W]` by linear interpolation
+/// with half-pixel centres and the edges repeated (PyTorch's `interpolate(scale_factor=2,
+/// align_corners=False)` along that axis): output `2i` is `¾ x[i] + ¼ x[i − 1]`, output
+/// `2i + 1` is `¾ x[i] + ¼ x[i + 1]`, with `x[−1] = x[0]` and `x[n] = x[n − 1]`. Plain tensor
+/// operations, so autodiff differentiates it.
+pub fn upsample2_linear(x: Tensor<5>, axis: usize) -> Tensor<5> {
+    let dims = x.dims();
+    let n = dims[axis];
+    let (prev, next) = if n == 1 {
+        (x.clone(), x.clone())
+    } else {
+        (
+            Tensor::cat(
+                vec![
+                    x.clone().narrow(axis, 0, 1),
+                    x.clone().narrow(axis, 0, n - 1),
+                ],
+                axis,
+            ),
+            Tensor::cat(
+                vec![
+                    x.clone().narrow(axis, 1, n - 1),
+                    x.clone().narrow(axis, n - 1, 1),
+                ],
+                axis,
+            ),
+        )
+    };
+    let x = x * 0.75;
+    let even: Tensor<6> = (x.clone() + prev * 0.25).unsqueeze_dim(axis + 1);
+    let odd: Tensor<6> = (x + next * 0.25).unsqueeze_dim(axis + 1);
+    let mut out = dims;
+    out[axis] *= 2;
+    Tensor::cat(vec![even, odd], axis + 1).reshape(out)
 }
 
 impl UNet3dConfig {
@@ -183,10 +236,15 @@ impl UNet3dConfig {
         let bottom = ch(self.levels);
         let sd = if self.halve_planes { 2 } else { 1 };
         let ng = self.norm_groups;
+        let proto = self.prototype_layout;
         UNet3d {
             stem: Block3d::new(self.in_channels, w, [1, 1, 1], 1, ng, device),
             down: (0..self.levels)
                 .map(|l| Block3d::new(ch(l), ch(l + 1), [sd, 2, 2], 1, ng, device))
+                .collect(),
+            again: (0..=self.levels)
+                .filter(|_| proto)
+                .map(|l| Block3d::new(ch(l), ch(l), [1, 1, 1], 1, ng, device))
                 .collect(),
             mid: self
                 .dilations
@@ -194,20 +252,33 @@ impl UNet3dConfig {
                 .map(|&d| Block3d::new(bottom, bottom, [1, 1, 1], d, ng, device))
                 .collect(),
             up: (0..self.levels)
+                .filter(|_| !proto)
                 .map(|l| {
                     ConvTranspose3dConfig::new([ch(l + 1), ch(l)], [sd, 2, 2])
                         .with_stride([sd, 2, 2])
                         .init(device)
                 })
                 .collect(),
+            // Upsampled by interpolation the coarser level keeps its channels; through a
+            // transposed convolution it arrives with this level's.
             dec: (0..self.levels)
-                .map(|l| Block3d::new(2 * ch(l), ch(l), [1, 1, 1], 1, ng, device))
+                .map(|l| {
+                    let cin = if proto { ch(l + 1) + ch(l) } else { 2 * ch(l) };
+                    Block3d::new(cin, ch(l), [1, 1, 1], 1, ng, device)
+                })
                 .collect(),
             head: zeroed_if(
                 self.residual,
-                Conv3dConfig::new([w, 1], [1, 1, 1]).init(device),
+                if proto {
+                    Conv3dConfig::new([w, 1], [3, 3, 3])
+                        .with_padding(PaddingConfig3d::Explicit(1, 1, 1))
+                        .init(device)
+                } else {
+                    Conv3dConfig::new([w, 1], [1, 1, 1]).init(device)
+                },
             ),
             residual: self.residual,
+            halve_planes: self.halve_planes,
         }
     }
 }
@@ -238,21 +309,34 @@ impl UNet3d {
     /// `[B, C, D, H, W]` → `[B, 1, D, H, W]`, in `[0, 1]` unless residual (H and W divisible
     /// by `2^levels`, and D too with `halve_planes`)
     pub fn forward(&self, x: Tensor<5>) -> Tensor<5> {
-        let mut x = self.stem.forward(x);
+        let mut again = self.again.iter();
+        let mut twice = |x: Tensor<5>| match again.next() {
+            Some(block) => block.forward(x),
+            None => x,
+        };
+        let mut x = twice(self.stem.forward(x));
         let mut skips = Vec::with_capacity(self.down.len());
         for down in &self.down {
             skips.push(x.clone());
-            x = down.forward(x);
+            x = twice(down.forward(x));
         }
         for mid in &self.mid {
             x = x.clone() + mid.forward(x);
         }
-        for (up, dec) in self.up.iter().zip(&self.dec).rev() {
+        for (l, dec) in self.dec.iter().enumerate().rev() {
             let skip = skips.pop().expect("one skip per level");
-            x = dec.forward(Tensor::cat(
-                vec![crate::fastconv::forward_transposed(up, x), skip],
-                1,
-            ));
+            let up = match self.up.get(l) {
+                Some(up) => crate::fastconv::forward_transposed(up, x),
+                None => {
+                    let x = upsample2_linear(upsample2_linear(x, 3), 4);
+                    if self.halve_planes {
+                        upsample2_linear(x, 2)
+                    } else {
+                        x
+                    }
+                }
+            };
+            x = dec.forward(Tensor::cat(vec![up, skip], 1));
         }
         let y = crate::fastconv::forward(&self.head, x);
         if self.residual { y } else { sigmoid(y) }
@@ -575,6 +659,82 @@ mod unet_tests {
             .init(&device);
         let y: f32 = net.forward(x).abs().max().into_scalar();
         assert_eq!(y, 0.0);
+    }
+
+    /// With the prototype's layout, plane halving, four groups and the sweep prior's seven
+    /// channels the U-Net has exactly the PyTorch prototype's 81,625 parameters, keeps the
+    /// volume's shape, and its residual head starts at zero.
+    #[test]
+    fn the_prototype_layout_is_the_prototypes_network() {
+        let device = Device::flex();
+        let config = UNet3dConfig::new()
+            .with_in_channels(7)
+            .with_dilations(vec![])
+            .with_halve_planes(true)
+            .with_norm_groups(4)
+            .with_prototype_layout(true)
+            .with_residual(true);
+        let net = config.init(&device);
+        assert_eq!(net.num_params(), 81_625);
+        let ours = config.clone().with_prototype_layout(false).init(&device);
+        assert_ne!(ours.num_params(), 81_625);
+        let x: Tensor<5> =
+            Tensor::random([1, 7, 16, 8, 12], Distribution::Normal(0.0, 1.0), &device);
+        let y = net.forward(x.clone());
+        assert_eq!(y.dims(), [1, 1, 16, 8, 12]);
+        let y: f32 = y.abs().max().into_scalar();
+        assert_eq!(y, 0.0);
+        // Without the residual head every output is a finite alpha.
+        let plain = config.with_residual(false).init(&device);
+        let a = plain.forward(x).into_data().try_to_vec::<f32>().unwrap();
+        assert!(a.iter().all(|v| (0.0..=1.0).contains(v)));
+    }
+
+    /// Doubling an axis equals half-pixel linear interpolation computed in f64 from its
+    /// definition (output `j` samples the input at `(j + ½) / 2 − ½`, clamped to the axis),
+    /// on every axis and on an axis of one.
+    #[test]
+    fn doubling_an_axis_is_half_pixel_linear_interpolation() {
+        let device = Device::flex();
+        for (axis, dims) in [
+            (2, [2, 3, 5, 2, 3]),
+            (3, [1, 2, 2, 4, 3]),
+            (4, [1, 1, 3, 2, 1]),
+        ] {
+            let x: Tensor<5> = Tensor::random(dims, Distribution::Normal(0.0, 1.0), &device);
+            let xs = x.clone().into_data().try_to_vec::<f32>().unwrap();
+            let y = upsample2_linear(x, axis);
+            let mut out = dims;
+            out[axis] *= 2;
+            assert_eq!(y.dims(), out);
+            let ys = y.into_data().try_to_vec::<f32>().unwrap();
+            let strides = |d: [usize; 5]| {
+                let mut s = [1; 5];
+                for i in (0..4).rev() {
+                    s[i] = s[i + 1] * d[i + 1];
+                }
+                s
+            };
+            let (si, so) = (strides(dims), strides(out));
+            let n = dims[axis];
+            for (o, &got) in ys.iter().enumerate() {
+                let idx: Vec<usize> = (0..5).map(|k| o / so[k] % out[k]).collect();
+                let src = ((idx[axis] as f64 + 0.5) / 2.0 - 0.5).clamp(0.0, (n - 1) as f64);
+                let (lo, t) = (src.floor() as usize, src.fract());
+                let hi = (lo + 1).min(n - 1);
+                let at = |i: usize| {
+                    let flat: usize = (0..5)
+                        .map(|k| if k == axis { i } else { idx[k] } * si[k])
+                        .sum();
+                    xs[flat] as f64
+                };
+                let want = at(lo) * (1.0 - t) + at(hi) * t;
+                assert!(
+                    (got as f64 - want).abs() < 1e-6,
+                    "axis {axis}, output {idx:?}: {got} vs {want}"
+                );
+            }
+        }
     }
 
     /// The group norm equals PyTorch's `GroupNorm` formula computed in f64 (biased variance

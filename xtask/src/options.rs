@@ -153,6 +153,13 @@ pub struct TrainArgs {
     /// config.json.
     #[arg(long, default_value_t = 0)]
     pub stage1_norm_groups: usize,
+    /// Stage 1 takes the PyTorch prototype's U-Net layout: two convolutions per level, no
+    /// dilated bottom, linear-interpolation upsampling followed by a convolution instead of
+    /// transposed convolutions, and a 3 x 3 x 3 head. With --stage1-halve-planes
+    /// --stage1-norm-groups 4 and --width 8 it is the prototype's network (81,625 parameters
+    /// with the sweep prior). Recorded in config.json.
+    #[arg(long)]
+    pub stage1_prototype_layout: bool,
     /// Phase-1 steps (stage 1).
     #[arg(long, default_value_t = defaults().phase1_steps)]
     pub phase1_steps: usize,

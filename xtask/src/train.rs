@@ -91,6 +91,10 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         c.stage1.share_weights = !a.separate_weights;
         c.stage1.unet.halve_planes = a.stage1_halve_planes;
         c.stage1.unet.norm_groups = a.stage1_norm_groups;
+        if a.stage1_prototype_layout {
+            c.stage1.unet.prototype_layout = true;
+            c.stage1.unet.dilations.clear();
+        }
         c.stage1.scale = a.stage1_scale as usize;
         c.blend.width = a.blend_width;
         c.width = a.size.0;

@@ -106,6 +106,18 @@ pub struct TrainConfig {
     /// What the learning rate is multiplied by from `lr_drop_at` on.
     #[config(default = 0.1)]
     pub lr_drop_factor: f64,
+    /// The sweep prior's window radius at a short side of
+    /// [`SweepConfig::TUNED_SHORT_SIDE`] px, scaled with the image like the sweep's own
+    /// (`None`: the sweep's default). Runs written before this field existed read as `None`.
+    #[config(default = "None")]
+    pub prior_window_radius: Option<u32>,
+    /// The sweep prior's softmax temperature over depths (`None`: the sweep's default).
+    #[config(default = "None")]
+    pub prior_temperature: Option<f32>,
+    /// The sweep prior's cost where the source does not see a pixel (`None`: the sweep's
+    /// default).
+    #[config(default = "None")]
+    pub prior_invalid_cost: Option<f32>,
 }
 
 impl TrainConfig {
@@ -141,6 +153,13 @@ impl TrainConfig {
                 .or_insert(serde_json::json!(mhi_data::Fit::Stretch));
             o.entry("lr_drop_at").or_insert(serde_json::Value::Null);
             o.entry("lr_drop_factor").or_insert(serde_json::json!(0.1));
+            for key in [
+                "prior_window_radius",
+                "prior_temperature",
+                "prior_invalid_cost",
+            ] {
+                o.entry(key).or_insert(serde_json::Value::Null);
+            }
             // Runs written before `loss_kind` existed: the formula of the perceptual loss ended
             // with the legacy marker "(VGG16)".
             if !o.contains_key("loss_kind") {
@@ -195,7 +214,15 @@ impl TrainConfig {
     /// The sweep's constants for the prior on images of `width × height` (the window scaled
     /// with the short side), or `None` without the prior.
     pub fn prior_sweep(&self, width: u32, height: u32) -> Option<SweepConfig> {
-        (self.prior == Prior::Sweep).then(|| SweepConfig::for_short_side(width.min(height)))
+        (self.prior == Prior::Sweep).then(|| {
+            let d = SweepConfig::default();
+            SweepConfig {
+                window_radius: self.prior_window_radius.unwrap_or(d.window_radius),
+                temperature: self.prior_temperature.unwrap_or(d.temperature),
+                invalid_cost: self.prior_invalid_cost.unwrap_or(d.invalid_cost),
+            }
+            .scaled_to_short_side(width.min(height))
+        })
     }
 
     /// Every image side must be a multiple of this: `2^levels` of each U-Net, times stage 1's
@@ -253,6 +280,25 @@ impl TrainConfig {
                 self.planes,
                 unet.levels,
                 1 << unet.levels
+            )));
+        }
+        if self.prior_window_radius == Some(0) {
+            return Err(Error::Config(
+                "prior_window_radius must be at least 1 pixel".into(),
+            ));
+        }
+        if let Some(t) = self.prior_temperature
+            && !(t > 0.0 && t.is_finite())
+        {
+            return Err(Error::Config(format!(
+                "prior_temperature {t}: must be a positive number"
+            )));
+        }
+        if let Some(c) = self.prior_invalid_cost
+            && !(0.0..=1.0).contains(&c)
+        {
+            return Err(Error::Config(format!(
+                "prior_invalid_cost {c}: must lie in [0, 1] (a mean absolute colour difference)"
             )));
         }
         let (channels, residual) = (self.prior.channels(), self.prior == Prior::Sweep);
@@ -417,6 +463,58 @@ mod tests {
         v.as_object_mut().unwrap().remove("triplet_sampling");
         let old = TrainConfig::from_json(&v.to_string(), Path::new("config.json")).unwrap();
         assert_eq!(old.triplet_sampling, mhi_data::TripletSampling::Clips);
+    }
+
+    /// The sweep prior's constants: the sweep's defaults unless given, the radius scaled with
+    /// the short side like the sweep's own; old runs read as the defaults; bad values are
+    /// refused by name.
+    #[test]
+    fn the_prior_sweep_takes_its_constants_from_the_config() {
+        let mut c = TrainConfig::for_normals(1).with_sweep_prior();
+        assert_eq!(
+            c.prior_sweep(192, 144),
+            Some(SweepConfig::for_short_side(144))
+        );
+        c.prior_window_radius = Some(5);
+        c.prior_temperature = Some(0.02);
+        c.prior_invalid_cost = Some(0.5);
+        assert!(c.validate().is_ok());
+        let p = c.prior_sweep(192, 144).unwrap();
+        assert_eq!(p.window_radius, 3, "5 at 256 px is 3 at 144 px");
+        assert_eq!((p.temperature, p.invalid_cost), (0.02, 0.5));
+        let text = serde_json::to_string(&c).unwrap();
+        let back = TrainConfig::from_json(&text, Path::new("config.json")).unwrap();
+        assert_eq!(back.prior_sweep(192, 144), Some(p));
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        for key in [
+            "prior_window_radius",
+            "prior_temperature",
+            "prior_invalid_cost",
+        ] {
+            v.as_object_mut().unwrap().remove(key);
+        }
+        let old = TrainConfig::from_json(&v.to_string(), Path::new("config.json")).unwrap();
+        assert_eq!(
+            old.prior_sweep(192, 144),
+            Some(SweepConfig::for_short_side(144))
+        );
+        for (field, bad) in [
+            (
+                "prior_window_radius",
+                c.clone().with_prior_window_radius(Some(0)),
+            ),
+            (
+                "prior_temperature",
+                c.clone().with_prior_temperature(Some(f32::NAN)),
+            ),
+            (
+                "prior_invalid_cost",
+                c.clone().with_prior_invalid_cost(Some(1.5)),
+            ),
+        ] {
+            let e = bad.validate().unwrap_err().to_string();
+            assert!(e.contains(field), "{e}");
+        }
     }
 
     /// Runs written before stage 1 could halve the plane axis, use group norms or take the

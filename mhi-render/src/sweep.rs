@@ -177,14 +177,20 @@ impl SweepConfig {
     /// The defaults with the window radius scaled from [`Self::TUNED_SHORT_SIDE`] to images
     /// whose short side is `short_side` pixels (at least 1): the same window in scene terms.
     pub fn for_short_side(short_side: u32) -> Self {
-        let d = Self::default();
-        let r = (f64::from(d.window_radius) * f64::from(short_side)
+        Self::default().scaled_to_short_side(short_side)
+    }
+
+    /// These constants with the window radius, given at a short side of
+    /// [`Self::TUNED_SHORT_SIDE`], scaled to images whose short side is `short_side` pixels
+    /// (the radius at least 1).
+    pub fn scaled_to_short_side(self, short_side: u32) -> Self {
+        let r = (f64::from(self.window_radius) * f64::from(short_side)
             / f64::from(Self::TUNED_SHORT_SIDE))
         .round()
         .max(1.0) as u32;
         Self {
             window_radius: r,
-            ..d
+            ..self
         }
     }
 }

@@ -188,6 +188,20 @@ pub struct TrainArgs {
     /// PyTorch's is 1e-8); recorded in config.json.
     #[arg(long, default_value_t = 1e-5, value_parser = parse_epsilon)]
     pub adam_epsilon: f32,
+    /// Window radius of the sweep prior's photo-consistency cost, in pixels at a short side
+    /// of 256 (scaled with the image; default: the sweep's own, 16). The PyTorch prototype
+    /// averages over 7 x 7 pixels at a short side of 144: 5. Recorded in config.json; the
+    /// evaluation's `sweep` rows keep the sweep's defaults.
+    #[arg(long)]
+    pub prior_window_radius: Option<u32>,
+    /// Softmax temperature over depths of the sweep prior (default: the sweep's own, 0.005;
+    /// the prototype's 0.02). Recorded in config.json.
+    #[arg(long)]
+    pub prior_temperature: Option<f32>,
+    /// The sweep prior's cost where the source does not see a pixel (default: the sweep's
+    /// own, 0.25; the prototype's 0.5). Recorded in config.json.
+    #[arg(long)]
+    pub prior_invalid_cost: Option<f32>,
     /// Seed of the weights and of the sampled triplets.
     #[arg(long, default_value_t = defaults().seed)]
     pub seed: u64,

@@ -105,6 +105,18 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         c.lr = a.lr;
         c.lr_drop_at = a.lr_drop_at;
         c.lr_drop_factor = a.lr_drop_factor;
+        if a.prior != PriorArg::Sweep
+            && (a.prior_window_radius.is_some()
+                || a.prior_temperature.is_some()
+                || a.prior_invalid_cost.is_some())
+        {
+            bail!(
+                "--prior-window-radius, --prior-temperature and --prior-invalid-cost shape the sweep prior: they need --prior sweep"
+            );
+        }
+        c.prior_window_radius = a.prior_window_radius;
+        c.prior_temperature = a.prior_temperature;
+        c.prior_invalid_cost = a.prior_invalid_cost;
         c.optimizer = c.optimizer.clone().with_epsilon(a.adam_epsilon);
         if a.no_grad_clip {
             c.optimizer = c.optimizer.clone().with_grad_clipping(None);

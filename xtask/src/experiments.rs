@@ -183,7 +183,7 @@ pub fn oracle(a: &OracleArgs) -> anyhow::Result<()> {
                 MhiSource::Sweep {
                     normals: c.normals.clone(),
                     depths: c.depths.clone(),
-                    config: SweepConfig::default(),
+                    config: SweepConfig::for_short_side(rf.image.width().min(rf.image.height())),
                 }
             } else {
                 MhiSource::Oracle {
@@ -372,7 +372,8 @@ pub struct SweepArgs {
     /// Softmax temperature of the winner-take-all over depths (lower is sharper).
     #[arg(long, default_value_t = SweepConfig::default().temperature)]
     pub temperature: f32,
-    /// Radius of the box window of the photo-consistency cost.
+    /// Radius of the box window of the photo-consistency cost, in pixels at a short side of
+    /// 256; scaled with the short side of --size (the same window in scene terms).
     #[arg(long, default_value_t = SweepConfig::default().window_radius)]
     pub window: u32,
     /// Output directory for the images and summary.json.
@@ -430,7 +431,8 @@ pub fn sweep(a: &SweepArgs) -> anyhow::Result<()> {
         temperature: a.temperature,
         window_radius: a.window,
         ..SweepConfig::default()
-    };
+    }
+    .scaled_to_short_side(a.size.0.min(a.size.1));
     let synth = ViewSynthesis::new(MhiSource::Sweep {
         normals: normals.clone(),
         depths,

@@ -307,8 +307,9 @@ pub struct EvalArgs {
         default_value = "1x8,5x8,1x16,5x16,1x32,5x32"
     )]
     pub sweep_grid: Vec<String>,
-    /// Radius of the sweep's photo-consistency window (chosen on validation sequences; see
-    /// README).
+    /// Radius of the sweep's photo-consistency window in pixels at a short side of 256 (chosen
+    /// there on validation sequences; see README), scaled with each sequence's evaluation short
+    /// side as the learned models' sweep prior and `render` scale it (9 at 144 px).
     #[arg(long, default_value_t = SweepConfig::default().window_radius)]
     pub sweep_window: u32,
     /// Softmax temperature of the sweep's winner-take-all over depths (chosen on validation

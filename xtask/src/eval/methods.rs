@@ -163,7 +163,12 @@ impl Ctx<'_> {
             let (mhi, t) = made(MhiSource::Sweep {
                 normals: NormalSet::paper_subset(n)?,
                 depths: a.range.depths(d)?,
-                config: self.sweep_config,
+                // The window is given at the tuned short side and scaled to this image, as the
+                // learned models' sweep prior and `render` scale it: the sweep row is what an
+                // untrained residual model renders, at any evaluation size.
+                config: self
+                    .sweep_config
+                    .scaled_to_short_side(rf.image.width().min(rf.image.height())),
             })?;
             let (image, render_ms, exact) = render_soft(&mhi, tf, a.prune())?;
             out.push(Output {

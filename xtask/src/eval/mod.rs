@@ -653,7 +653,7 @@ fn markdown(
     let _ = writeln!(s, "# MHI evaluation report\n");
     let _ = writeln!(
         s,
-        "Dataset `{}` (split `{}`, {} sequences), {} triplets (rotation bins {}: {} / {} / {} / {}), evaluated at {}. {}. Sweep: window radius {}, temperature {}. Intervals: 95 % percentile bootstrap over triplets ({} resamples, seed {}). Machine: {}, {} threads, {}.\n",
+        "Dataset `{}` (split `{}`, {} sequences), {} triplets (rotation bins {}: {} / {} / {} / {}), evaluated at {}. {}. Sweep: window radius {} px at a short side of 256 (scaled with each sequence's short side: {} px at {}), temperature {}. Intervals: 95 % percentile bootstrap over triplets ({} resamples, seed {}). Machine: {}, {} threads, {}.\n",
         meta.dataset,
         meta.split,
         meta.sequences.len(),
@@ -666,6 +666,10 @@ fn markdown(
         size_label(&meta.sizes),
         meta.lpips,
         meta.sweep.window_radius,
+        meta.sweep
+            .scaled_to_short_side(meta.size.0.min(meta.size.1))
+            .window_radius,
+        meta.size.0.min(meta.size.1),
         meta.sweep.temperature,
         meta.bootstrap.resamples,
         meta.bootstrap.seed,

@@ -106,7 +106,7 @@ pub(super) fn write_layers_and_orbit(
         None => MhiSource::Sweep {
             normals: NormalSet::paper(),
             depths: a.range.depths(8)?,
-            config: SweepConfig::default(),
+            config: SweepConfig::for_short_side(rf.image.width().min(rf.image.height())),
         },
     };
     let synth = ViewSynthesis::new(source);

@@ -9,6 +9,10 @@ PNGs `cargo xtask eval --samples N` writes (`OUT/samples/NNN/<method>.png` besid
 
     python3 xtask/scripts/proto_metric.py OUT INDEX.json --a learned_n5_d16 --b sweep_n5_d16
 
+With `--b-out OUT2` the second method's images come from another evaluation of the same index
+(e.g. a sweep-only evaluation re-run with other sweep constants); the ground truths of the two
+must be identical, which is checked.
+
 Every triplet of the index must have its sample directory (run the evaluation with --samples at
 least the number of triplets).
 """
@@ -45,13 +49,18 @@ def main():
     ap.add_argument("index")
     ap.add_argument("--a", required=True, help="method image name, e.g. learned_n5_d16")
     ap.add_argument("--b", required=True, help="the method it is compared with")
+    ap.add_argument("--b-out", help="evaluation directory of --b (default: OUT)")
     args = ap.parse_args()
     triplets = json.load(open(args.index))["triplets"]
     rows = {"interpolation": [], "extrapolation": []}
     for k, t in enumerate(triplets):
         d = os.path.join(args.out, "samples", f"{k:03}")
         gt = load(os.path.join(d, "ground_truth.png"))
-        pa, pb = (psnr_crop(load(os.path.join(d, f"{m}.png")), gt) for m in (args.a, args.b))
+        db = d if args.b_out is None else os.path.join(args.b_out, "samples", f"{k:03}")
+        if db != d and not np.array_equal(load(os.path.join(db, "ground_truth.png")), gt):
+            raise SystemExit(f"{db}: its ground truth differs from {d}'s: not the same index")
+        pa = psnr_crop(load(os.path.join(d, f"{args.a}.png")), gt)
+        pb = psnr_crop(load(os.path.join(db, f"{args.b}.png")), gt)
         rows[t["kind"]].append((pa, pb))
     both = []
     for kind, r in rows.items():

@@ -316,6 +316,12 @@ pub struct EvalArgs {
     /// sequences; see README).
     #[arg(long, default_value_t = SweepConfig::default().temperature)]
     pub sweep_temperature: f32,
+    /// The sweep's cost of a plane where the source does not see the pixel (with
+    /// --sweep-window and --sweep-temperature, the constants of a prior trained with
+    /// --prior-invalid-cost can be matched).
+    #[arg(long, default_value_t = SweepConfig::default().invalid_cost)]
+    pub sweep_invalid_cost: f32,
+
     /// (N, D) configurations of the oracle (synthetic scenes only).
     #[arg(long, value_delimiter = ',', default_value = "1x8,5x8,5x32")]
     pub oracle_grid: Vec<String>,

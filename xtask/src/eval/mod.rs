@@ -232,7 +232,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let sweep_config = SweepConfig {
         window_radius: a.sweep_window,
         temperature: a.sweep_temperature,
-        ..SweepConfig::default()
+        invalid_cost: a.sweep_invalid_cost,
     };
     // The size of each sequence, checked against every model before any work.
     let size_of = |seq: &mhi_data::Sequence| -> anyhow::Result<(u32, u32)> {
@@ -653,7 +653,7 @@ fn markdown(
     let _ = writeln!(s, "# MHI evaluation report\n");
     let _ = writeln!(
         s,
-        "Dataset `{}` (split `{}`, {} sequences), {} triplets (rotation bins {}: {} / {} / {} / {}), evaluated at {}. {}. Sweep: window radius {} px at a short side of 256 (scaled with each sequence's short side: {} px at {}), temperature {}. Intervals: 95 % percentile bootstrap over triplets ({} resamples, seed {}). Machine: {}, {} threads, {}.\n",
+        "Dataset `{}` (split `{}`, {} sequences), {} triplets (rotation bins {}: {} / {} / {} / {}), evaluated at {}. {}. Sweep: window radius {} px at a short side of 256 (scaled with each sequence's short side: {} px at {}), temperature {}, cost of an unseen plane {}. Intervals: 95 % percentile bootstrap over triplets ({} resamples, seed {}). Machine: {}, {} threads, {}.\n",
         meta.dataset,
         meta.split,
         meta.sequences.len(),
@@ -671,6 +671,7 @@ fn markdown(
             .window_radius,
         meta.size.0.min(meta.size.1),
         meta.sweep.temperature,
+        meta.sweep.invalid_cost,
         meta.bootstrap.resamples,
         meta.bootstrap.seed,
         meta.machine,

@@ -7,11 +7,13 @@ triplets of (error of B)² − (error of A)² per pixel, colour channels average
 own coordinates: blue where A is better, red where B is, white where they agree (the scale is
 symmetric, its end the 99th percentile of |difference|). It also prints the PSNR difference
 A − B on the whole image, on its central 80 % (the PyTorch prototype's crop) and on the outer
-band, and which share of the whole-image squared-error reduction lies in that band:
+band, and which share of the whole-image squared-error reduction lies in that band, and in
+bands by distance from the frame's edge:
 
     python3 xtask/scripts/gain_map.py OUT --a learned_n5_d16 --b sweep_n5_d16 --png map.png
 
-Every sample directory must hold both methods' images (all of one size).
+Every sample directory must hold both methods' images; the map averages the samples of the
+first one's size, the figures use them all.
 """
 import argparse
 import os
@@ -44,24 +46,35 @@ def main():
     dirs = sorted(d for d in os.listdir(root) if d.isdigit())
     if not dirs:
         raise SystemExit(f"{root}: no sample directories")
+    bands = ((0, 1), (1, 3), (3, 8), (8, 16), (16, 40), (40, 1 << 30))
+    band_a, band_b, band_n = (np.zeros(len(bands)) for _ in range(3))
     diff, rows = None, []
     for d in dirs:
         p = os.path.join(root, d)
         gt = load(os.path.join(p, "ground_truth.png"))
         ea = ((load(os.path.join(p, f"{args.a}.png")) - gt) ** 2).mean(axis=2)
         eb = ((load(os.path.join(p, f"{args.b}.png")) - gt) ** 2).mean(axis=2)
-        if diff is not None and diff.shape != ea.shape:
-            raise SystemExit(f"{p}: size {ea.shape} differs from the first sample's {diff.shape}")
-        diff = eb - ea if diff is None else diff + (eb - ea)
+        # The map averages the samples of the first sample's size (sequences may differ).
+        if diff is None:
+            diff, mapped = eb - ea, 1
+        elif diff.shape == ea.shape:
+            diff, mapped = diff + (eb - ea), mapped + 1
         h, w = ea.shape
+        yy, xx = np.mgrid[0:h, 0:w]
+        edge = np.minimum.reduce([xx, w - 1 - xx, yy, h - 1 - yy])
+        for i, (lo, hi) in enumerate(bands):
+            m = (edge >= lo) & (edge < hi)
+            band_a[i] += ea[m].sum()
+            band_b[i] += eb[m].sum()
+            band_n[i] += m.sum()
         ch, cw = int(h * args.crop / 2), int(w * args.crop / 2)
-        centre = np.zeros_like(ea, dtype=bool)
+        centre = np.zeros(ea.shape, dtype=bool)
         centre[ch:h - ch, cw:w - cw] = True
         rows.append([psnr(ea.mean()) - psnr(eb.mean()),
                      psnr(ea[centre].mean()) - psnr(eb[centre].mean()),
                      psnr(ea[~centre].mean()) - psnr(eb[~centre].mean()),
                      (eb - ea)[~centre].sum(), (eb - ea).sum()])
-    diff /= len(dirs)
+    diff /= mapped
     r = np.array(rows)
     share = r[:, 3].sum() / r[:, 4].sum() if r[:, 4].sum() != 0 else float("nan")
     print(f"{len(dirs)} triplets, {args.a} − {args.b} (mean of per-triplet PSNR differences): "
@@ -69,6 +82,17 @@ def main():
           f"{r[:, 1].mean():+.2f} dB, outer band {r[:, 2].mean():+.2f} dB; the band holds "
           f"{100 * (1 - centre.mean()):.0f} % of the pixels and {100 * share:.0f} % of the "
           f"squared-error reduction")
+    total = (band_b - band_a).sum()
+    print("by distance from the frame's edge (px): share of pixels, mean squared error of each, "
+          "share of the squared-error reduction")
+    for i, (lo, hi) in enumerate(bands):
+        if band_n[i] == 0:
+            continue
+        label = f"{lo}-{hi}" if hi < 1 << 30 else f"{lo}+"
+        share = 100 * (band_b[i] - band_a[i]) / total if total != 0 else float("nan")
+        print(f"  {label:>6}: {100 * band_n[i] / band_n.sum():5.1f} % of pixels, "
+              f"{args.a} {band_a[i] / band_n[i]:.5f}, {args.b} {band_b[i] / band_n[i]:.5f}, "
+              f"{share:6.1f} %")
     s = np.percentile(np.abs(diff), 99) or 1.0
     t = np.clip(diff / s, -1, 1)[..., None]
     white, blue, red = np.ones(3), np.array([0.13, 0.4, 0.85]), np.array([0.85, 0.2, 0.13])
@@ -76,7 +100,8 @@ def main():
     tmp = args.png + ".tmp.png"
     Image.fromarray((img * 255).round().astype(np.uint8)).save(tmp)
     os.replace(tmp, args.png)
-    print(f"map: {args.png} (blue: {args.a} better, red: {args.b} better; full scale ±{s:.2e} squared error)")
+    print(f"map: {args.png} ({mapped} of {len(dirs)} samples, those of the first one's size; "
+          f"blue: {args.a} better, red: {args.b} better; full scale ±{s:.2e} squared error)")
 
 
 if __name__ == "__main__":

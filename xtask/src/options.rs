@@ -321,7 +321,6 @@ pub struct EvalArgs {
     /// --prior-invalid-cost can be matched).
     #[arg(long, default_value_t = SweepConfig::default().invalid_cost)]
     pub sweep_invalid_cost: f32,
-
     /// (N, D) configurations of the oracle (synthetic scenes only).
     #[arg(long, value_delimiter = ',', default_value = "1x8,5x8,5x32")]
     pub oracle_grid: Vec<String>,

@@ -118,6 +118,13 @@ pub struct TrainConfig {
     /// default).
     #[config(default = "None")]
     pub prior_invalid_cost: Option<f32>,
+    /// Where the sweep prior's alphas are clamped before their logit is taken: `[c, 1 − c]`
+    /// (`None`: [`crate::PRIOR_EPS`], every run before this field existed). The clamped-off
+    /// remainder is added back as a constant, so an untrained model renders the sweep whatever
+    /// `c`; but a residual on a clamped logit moves its alpha at rate `c (1 − c)`, so with
+    /// `c = 1e-3` the alphas the sweep is sure of barely move under training.
+    #[config(default = "None")]
+    pub prior_clamp: Option<f32>,
 }
 
 impl TrainConfig {
@@ -157,6 +164,7 @@ impl TrainConfig {
                 "prior_window_radius",
                 "prior_temperature",
                 "prior_invalid_cost",
+                "prior_clamp",
             ] {
                 o.entry(key).or_insert(serde_json::Value::Null);
             }
@@ -225,6 +233,12 @@ impl TrainConfig {
         })
     }
 
+    /// Where the sweep prior's alphas are clamped before their logit is taken (see
+    /// [`Self::prior_clamp`]).
+    pub fn prior_eps(&self) -> f32 {
+        self.prior_clamp.unwrap_or(crate::PRIOR_EPS)
+    }
+
     /// Every image side must be a multiple of this: `2^levels` of each U-Net, times stage 1's
     /// scale.
     pub fn size_multiple(&self) -> usize {
@@ -286,6 +300,13 @@ impl TrainConfig {
             return Err(Error::Config(
                 "prior_window_radius must be at least 1 pixel".into(),
             ));
+        }
+        if let Some(c) = self.prior_clamp
+            && !(c > 0.0 && c < 0.5)
+        {
+            return Err(Error::Config(format!(
+                "prior_clamp {c}: must lie strictly between 0 and 0.5"
+            )));
         }
         if let Some(t) = self.prior_temperature
             && !(t > 0.0 && t.is_finite())
@@ -478,6 +499,8 @@ mod tests {
         c.prior_window_radius = Some(5);
         c.prior_temperature = Some(0.02);
         c.prior_invalid_cost = Some(0.5);
+        assert_eq!(c.prior_eps(), crate::PRIOR_EPS);
+        c.prior_clamp = Some(0.05);
         assert!(c.validate().is_ok());
         let p = c.prior_sweep(192, 144).unwrap();
         assert_eq!(p.window_radius, 3, "5 at 256 px is 3 at 144 px");
@@ -485,11 +508,13 @@ mod tests {
         let text = serde_json::to_string(&c).unwrap();
         let back = TrainConfig::from_json(&text, Path::new("config.json")).unwrap();
         assert_eq!(back.prior_sweep(192, 144), Some(p));
+        assert_eq!(back.prior_eps(), 0.05);
         let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
         for key in [
             "prior_window_radius",
             "prior_temperature",
             "prior_invalid_cost",
+            "prior_clamp",
         ] {
             v.as_object_mut().unwrap().remove(key);
         }
@@ -497,6 +522,11 @@ mod tests {
         assert_eq!(
             old.prior_sweep(192, 144),
             Some(SweepConfig::for_short_side(144))
+        );
+        assert_eq!(
+            old.prior_eps(),
+            crate::PRIOR_EPS,
+            "old runs keep their clamp"
         );
         for (field, bad) in [
             (
@@ -511,6 +541,8 @@ mod tests {
                 "prior_invalid_cost",
                 c.clone().with_prior_invalid_cost(Some(1.5)),
             ),
+            ("prior_clamp", c.clone().with_prior_clamp(Some(0.5))),
+            ("prior_clamp", c.clone().with_prior_clamp(Some(0.0))),
         ] {
             let e = bad.validate().unwrap_err().to_string();
             assert!(e.contains(field), "{e}");

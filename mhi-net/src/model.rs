@@ -130,7 +130,10 @@ impl Model {
             &self.depths,
             reference,
             source,
-            self.config.prior_sweep(w, h).as_ref(),
+            self.config
+                .prior_sweep(w, h)
+                .as_ref()
+                .map(|c| (c, self.config.prior_eps())),
             self.stage1_scale(w as usize, h as usize),
             &self.device,
         )

@@ -519,7 +519,10 @@ impl Trainer {
             &self.depths,
             &s.reference,
             &s.source,
-            self.config.prior_sweep(w, h).as_ref(),
+            self.config
+                .prior_sweep(w, h)
+                .as_ref()
+                .map(|c| (c, self.config.prior_eps())),
             self.config.stage1.scale,
             device,
         )

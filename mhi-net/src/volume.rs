@@ -33,7 +33,8 @@ impl Prior {
 
 /// The sweep's alphas are clamped to `[PRIOR_EPS, 1 − PRIOR_EPS]` before their logit is taken
 /// (logits within ±6.9, where the sigmoid still has a gradient); the clamped-off remainder is
-/// added back as a constant, so a zero residual gives the sweep's alphas exactly.
+/// added back as a constant, so a zero residual gives the sweep's alphas exactly. The default
+/// of [`crate::TrainConfig::prior_clamp`], which a run may set otherwise.
 pub const PRIOR_EPS: f32 = 1e-3;
 
 /// The logit channel enters the network divided by this (the logits span ±6.9, the colours
@@ -147,8 +148,9 @@ pub fn cost_volume(
 }
 
 /// Stage 1's input for a pair: the cost volume averaged over `block × block` pixel blocks, and
-/// with `prior` (the sweep's constants on this image size) the sweep's logits as a seventh
-/// channel and, at full resolution, as the base of the residual.
+/// with `prior` (the sweep's constants on this image size, and where its alphas are clamped
+/// before their logit is taken: [`PRIOR_EPS`] unless a run says otherwise) the sweep's logits
+/// as a seventh channel and, at full resolution, as the base of the residual.
 ///
 /// # Errors
 /// Geometry the sweep cannot use, or an image side not divisible by `block`.
@@ -157,7 +159,7 @@ pub fn stage1_input(
     depths: &[f64],
     reference: &LoadedFrame,
     source: &LoadedFrame,
-    prior: Option<&SweepConfig>,
+    prior: Option<(&SweepConfig, f32)>,
     block: usize,
     device: &Device,
 ) -> crate::Result<Stage1Input> {
@@ -180,7 +182,13 @@ pub fn stage1_input(
         reference.image.width() as usize,
         reference.image.height() as usize,
     );
-    let sweep = match prior {
+    let eps = prior.map_or(PRIOR_EPS, |(_, e)| e);
+    if !(eps > 0.0 && eps < 0.5) {
+        return Err(crate::Error::Config(format!(
+            "prior clamp {eps}: must lie strictly between 0 and 0.5"
+        )));
+    }
+    let sweep = match prior.map(|(c, _)| c) {
         Some(cfg) => {
             check_parallax(&reference.camera, &source.camera, depths)?;
             Some(sweep_alphas(&psv, &reference.image, cfg)?)
@@ -190,16 +198,16 @@ pub fn stage1_input(
     use rayon::prelude::*;
     // Most of the sweep's alphas are clamped (its softmax is peaked): their logits are two
     // constants, taken once instead of a logarithm each.
-    let (lo, hi) = (logit(0.0), logit(1.0));
+    let (lo, hi) = (logit(0.0, eps), logit(1.0, eps));
     let logits: Option<Vec<f32>> = sweep.as_ref().map(|a| {
         a.par_iter()
             .map(|&v| {
-                if v <= PRIOR_EPS {
+                if v <= eps {
                     lo
-                } else if v >= 1.0 - PRIOR_EPS {
+                } else if v >= 1.0 - eps {
                     hi
                 } else {
-                    logit(v)
+                    logit(v, eps)
                 }
             })
             .collect()
@@ -211,7 +219,7 @@ pub fn stage1_input(
     let prior = sweep.zip(logits).map(|(alpha, logit)| {
         let correction: Vec<f32> = alpha
             .par_iter()
-            .map(|&a| a - a.clamp(PRIOR_EPS, 1.0 - PRIOR_EPS))
+            .map(|&a| a - a.clamp(eps, 1.0 - eps))
             .collect();
         SweepPrior {
             logit,
@@ -301,9 +309,9 @@ fn pool(dst: &mut [f32], (w, h): (usize, usize), block: usize, value: impl Fn(us
     }
 }
 
-/// `log(c / (1 − c))` of the alpha clamped to `[PRIOR_EPS, 1 − PRIOR_EPS]`.
-fn logit(a: f32) -> f32 {
-    let c = a.clamp(PRIOR_EPS, 1.0 - PRIOR_EPS);
+/// `log(c / (1 − c))` of the alpha clamped to `[eps, 1 − eps]`.
+fn logit(a: f32, eps: f32) -> f32 {
+    let c = a.clamp(eps, 1.0 - eps);
     (c / (1.0 - c)).ln()
 }
 
@@ -332,7 +340,7 @@ mod tests {
                 })
                 .collect();
             let prior = SweepPrior {
-                logit: alpha.iter().map(|&a| logit(a)).collect(),
+                logit: alpha.iter().map(|&a| logit(a, PRIOR_EPS)).collect(),
                 correction: alpha
                     .iter()
                     .map(|&a| a - a.clamp(PRIOR_EPS, 1.0 - PRIOR_EPS))

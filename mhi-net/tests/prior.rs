@@ -180,7 +180,7 @@ fn the_block_averaged_volume_matches_stage_1s_own_pooling() {
             &mhi_geom::depths_linear_in_disparity(1.0, 100.0, 6).unwrap(),
             &s.reference,
             &s.source,
-            prior.as_ref(),
+            prior.as_ref().map(|c| (c, cfg.prior_eps())),
             block,
             &device,
         )
@@ -247,4 +247,56 @@ fn training_frames_are_stretched_or_cropped_as_the_config_says() {
     };
     assert!((ratio(mhi_data::Fit::CenterCrop) - 1.0).abs() < 1e-9);
     assert!((ratio(mhi_data::Fit::Stretch) - 2.0).abs() < 1e-9);
+}
+
+/// `prior_clamp` moves where the sweep's alphas are clamped before their logit: an untrained
+/// model still renders the sweep's alphas (the remainder is added back), but a residual of 1 on
+/// a logit the sweep is sure of (alpha 0 or 1) moves that alpha by about `c (1 − c)` instead of
+/// `1e-3`: what lets training change the alphas the sweep is sure of.
+#[test]
+fn the_prior_clamp_keeps_the_sweep_and_sets_how_far_a_residual_moves_sure_alphas() {
+    let d = synthetic(1, 6, (48, 48), 3);
+    let s = trainer(&config(), d.path()).sample(0).unwrap();
+    let alphas_with = |clamp: Option<f32>| {
+        let model = Model::untrained(config().with_prior_clamp(clamp), Device::flex()).unwrap();
+        let input = model.stage1_input(&s.reference, &s.source).unwrap();
+        let prior = input.prior.clone().expect("a model on the sweep prior");
+        let (planes, h, w) = prior.shape;
+        let one = burn::tensor::Tensor::<4>::ones([planes, 1, h, w], &Device::flex());
+        let moved: Vec<f32> = prior.apply(one).into_data().try_to_vec().unwrap();
+        (model.alphas(input).unwrap(), moved)
+    };
+    let (base, moved_base) = alphas_with(None);
+    let (wide, moved_wide) = alphas_with(Some(0.05));
+    let same = base
+        .iter()
+        .zip(&wide)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0_f32, f32::max);
+    assert!(
+        same <= 1e-5,
+        "the untrained alphas moved with the clamp by {same}"
+    );
+    // The alphas the sweep put at (nearly) 0 (most of them: its softmax is peaked), raised by a
+    // residual of 1.
+    let rise = |moved: &[f32]| {
+        let (mut sum, mut count) = (0.0_f64, 0_usize);
+        for (a, m) in base.iter().zip(moved) {
+            if *a <= 1e-4 {
+                sum += f64::from(*m);
+                count += 1;
+            }
+        }
+        assert!(count > 100, "only {count} alphas near 0");
+        sum / count as f64
+    };
+    let (r_base, r_wide) = (rise(&moved_base), rise(&moved_wide));
+    assert!(
+        r_base < 0.003,
+        "clamp 1e-3: a residual of 1 raised a zero alpha by {r_base}"
+    );
+    assert!(
+        (0.05..0.15).contains(&r_wide),
+        "clamp 0.05: a residual of 1 raised a zero alpha by {r_wide}"
+    );
 }

@@ -202,6 +202,13 @@ pub struct TrainArgs {
     /// own, 0.25; the prototype's 0.5). Recorded in config.json.
     #[arg(long)]
     pub prior_invalid_cost: Option<f32>,
+    /// Where the sweep prior's alphas are clamped before stage 1's residual is added to their
+    /// logit: [c, 1 - c] (default 0.001). The clamped-off rest is added back, so the untrained
+    /// model still renders the sweep; but a residual moves an alpha the sweep is sure of (0 or 1)
+    /// at a rate of about c (1 - c), so with 0.001 training barely moves those. Must lie in
+    /// (0, 0.5); recorded in config.json.
+    #[arg(long)]
+    pub prior_clamp: Option<f32>,
     /// Seed of the weights and of the sampled triplets.
     #[arg(long, default_value_t = defaults().seed)]
     pub seed: u64,

@@ -108,12 +108,14 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         if a.prior != PriorArg::Sweep
             && (a.prior_window_radius.is_some()
                 || a.prior_temperature.is_some()
-                || a.prior_invalid_cost.is_some())
+                || a.prior_invalid_cost.is_some()
+                || a.prior_clamp.is_some())
         {
             bail!(
-                "--prior-window-radius, --prior-temperature and --prior-invalid-cost shape the sweep prior: they need --prior sweep"
+                "--prior-window-radius, --prior-temperature, --prior-invalid-cost and --prior-clamp shape the sweep prior: they need --prior sweep"
             );
         }
+        c.prior_clamp = a.prior_clamp;
         c.prior_window_radius = a.prior_window_radius;
         c.prior_temperature = a.prior_temperature;
         c.prior_invalid_cost = a.prior_invalid_cost;

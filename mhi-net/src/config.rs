@@ -301,12 +301,8 @@ impl TrainConfig {
                 "prior_window_radius must be at least 1 pixel".into(),
             ));
         }
-        if let Some(c) = self.prior_clamp
-            && !(c > 0.0 && c < 0.5)
-        {
-            return Err(Error::Config(format!(
-                "prior_clamp {c}: must lie strictly between 0 and 0.5"
-            )));
+        if let Some(c) = self.prior_clamp {
+            crate::volume::check_prior_clamp(c)?;
         }
         if let Some(t) = self.prior_temperature
             && !(t > 0.0 && t.is_finite())

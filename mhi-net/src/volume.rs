@@ -183,11 +183,7 @@ pub fn stage1_input(
         reference.image.height() as usize,
     );
     let eps = prior.map_or(PRIOR_EPS, |(_, e)| e);
-    if !(eps > 0.0 && eps < 0.5) {
-        return Err(crate::Error::Config(format!(
-            "prior clamp {eps}: must lie strictly between 0 and 0.5"
-        )));
-    }
+    check_prior_clamp(eps)?;
     let sweep = match prior.map(|(c, _)| c) {
         Some(cfg) => {
             check_parallax(&reference.camera, &source.camera, depths)?;
@@ -306,6 +302,18 @@ fn pool(dst: &mut [f32], (w, h): (usize, usize), block: usize, value: impl Fn(us
     let norm = 1.0 / (block * block) as f32;
     for v in dst.iter_mut() {
         *v *= norm;
+    }
+}
+
+/// A clamp `[eps, 1 − eps]` of the prior's alphas is one only for `0 < eps < 0.5` (what
+/// [`crate::TrainConfig`] checks of `prior_clamp`, and [`stage1_input`] of what it is given).
+pub(crate) fn check_prior_clamp(eps: f32) -> crate::Result<()> {
+    if eps > 0.0 && eps < 0.5 {
+        Ok(())
+    } else {
+        Err(crate::Error::Config(format!(
+            "prior_clamp {eps}: must lie strictly between 0 and 0.5"
+        )))
     }
 }
 

@@ -156,7 +156,7 @@ impl Model {
             None => data(alphas_of(&self.stage1, input).into_data())?,
         };
         use rayon::prelude::*;
-        if let Some(k) = v.par_iter().position_first(|a| !a.is_finite()) {
+        if let Some(k) = mhi_render::first_failing(&v, f32::is_finite) {
             return Err(Error::NonFinite(format!(
                 "stage 1 produced {} at alpha {k}",
                 v[k]

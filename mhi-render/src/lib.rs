@@ -49,7 +49,7 @@ pub use cpu::{
     heuristic_weights, heuristic_weights_for, needed_share, needed_share_per_normal, render,
 };
 pub use error::{Error, Result};
-pub use mhi::{ALPHA_BLOCK, LayerColor, Mhi};
+pub use mhi::{ALPHA_BLOCK, LayerColor, Mhi, first_failing};
 pub use oracle::{PixelTruth, oracle_alpha, oracle_weights};
 pub use sweep::{
     PlaneSweepVolume, SweepConfig, alphas_from_probabilities, check_parallax, plane_sweep_volume,

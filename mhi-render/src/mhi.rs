@@ -76,10 +76,7 @@ impl Mhi {
                 alpha.len()
             )));
         }
-        if let Some(k) = alpha
-            .par_iter()
-            .position_first(|a| !(0.0..=1.0).contains(a))
-        {
+        if let Some(k) = first_failing(&alpha, |a| (0.0..=1.0).contains(&a)) {
             return Err(Error::InvalidMhi(format!(
                 "alpha must lie in [0, 1]; value {} at layer {}, pixel {}",
                 alpha[k],
@@ -254,6 +251,24 @@ fn block_ranges(alpha: &[f32], w: usize, h: usize) -> Vec<(f32, f32)> {
     out
 }
 
+/// Index of the first value of `values` for which `ok` is false, if any.
+///
+/// Scans chunks of 64 Ki values in parallel and each chunk in one branch-free pass; only the
+/// chunk that fails is searched value by value. (Rayon's `position_first` value by value took
+/// about 80 ms on the 9 M alphas of an N = 5, D = 16 MHI at 448 × 256, a quarter of a sweep
+/// view; this takes a few.)
+pub fn first_failing(values: &[f32], ok: impl Fn(f32) -> bool + Sync) -> Option<usize> {
+    const CHUNK: usize = 1 << 16;
+    let chunk = values
+        .par_chunks(CHUNK)
+        .position_first(|c| !c.iter().fold(true, |all, &v| all & ok(v)))?;
+    let start = chunk * CHUNK;
+    values[start..]
+        .iter()
+        .position(|&v| !ok(v))
+        .map(|k| start + k)
+}
+
 fn check_size(img: &Rgb32FImage, w: u32, h: u32, what: &str) -> Result<()> {
     if img.dimensions() != (w, h) {
         return Err(Error::InvalidMhi(format!(
@@ -268,4 +283,30 @@ fn check_size(img: &Rgb32FImage, w: u32, h: u32, what: &str) -> Result<()> {
         )));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::first_failing;
+
+    #[test]
+    fn first_failing_finds_the_first_bad_value_across_chunks() {
+        let chunk = 1 << 16;
+        let ok = |v: f32| (0.0..=1.0).contains(&v);
+        let mut v = vec![0.5_f32; 5 * chunk + 123];
+        assert_eq!(first_failing(&v, ok), None);
+        assert_eq!(first_failing(&[], ok), None);
+        // Bad values in several chunks: the first one is found, whichever chunk finishes first.
+        for &(k, bad) in &[
+            (5 * chunk + 122, 1.5),
+            (3 * chunk + 7, f32::NAN),
+            (chunk, -0.0001),
+            (chunk - 1, f32::INFINITY),
+        ] {
+            v[k] = bad;
+            assert_eq!(first_failing(&v, ok), Some(k), "bad value at {k}");
+        }
+        v[0] = -1.0;
+        assert_eq!(first_failing(&v, ok), Some(0));
+    }
 }

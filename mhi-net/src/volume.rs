@@ -73,7 +73,7 @@ impl SweepPrior {
     /// to the full grid by burn's bilinear `interpolate` (corners aligned, as
     /// [`crate::Stage1::forward_blocks`] does), in one pass over the alphas instead of five
     /// full-size tensor operations: the interpolation is the same sums in the same order; the
-    /// sigmoid is `1 / (1 + e^−z)` with [`exp_approx`] (within 2 · 10⁻⁷ of `e^x`, relatively),
+    /// sigmoid is `1 / (1 + e^−z)` with `exp_approx` (within 2 · 10⁻⁷ of `e^x`, relatively),
     /// which vectorises where the library's `exp` is a call per value.
     ///
     /// # Panics
@@ -128,7 +128,7 @@ impl SweepPrior {
 /// range it gives `e^−87.3` (about 1.2 · 10⁻³⁸, where `e^x` turns subnormal), above it `e^88`
 /// (about 1.7 · 10³⁸); NaN stays NaN.
 #[inline(always)]
-pub fn exp_approx(x: f32) -> f32 {
+pub(crate) fn exp_approx(x: f32) -> f32 {
     const LOG2E: f32 = std::f32::consts::LOG2_E;
     // ln 2 split in two so that n · LN2_HI is exact.
     const LN2_HI: f32 = 0.693_359_4;

@@ -355,6 +355,10 @@ fn logit(a: f32, eps: f32) -> f32 {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+    use burn::tensor::module::interpolate;
+    use burn::tensor::ops::{InterpolateMode, InterpolateOptions};
+
     #[test]
     fn exp_approx_is_within_two_parts_in_ten_million() {
         let mut worst = 0.0_f64;
@@ -370,10 +374,6 @@ mod tests {
         assert!(super::exp_approx(f32::INFINITY).is_finite());
         assert_eq!(super::exp_approx(0.0), 1.0);
     }
-
-    use super::*;
-    use burn::tensor::module::interpolate;
-    use burn::tensor::ops::{InterpolateMode, InterpolateOptions};
 
     #[test]
     fn the_fused_prior_gives_the_alphas_of_the_tensor_path() {

@@ -27,7 +27,8 @@ use clap::Parser;
 enum Task {
     /// The whole method from a fresh clone: synthesise scenes, fetch the pretrained weights,
     /// train the default MHI model and the MPI baseline, evaluate every method and write the
-    /// report (under 40 minutes on 2 cores). Prints the report's path.
+    /// report (about 12 minutes from a fresh clone on 2 cores, 5 once built). Prints the
+    /// report's path.
     Demo(demo::DemoArgs),
     /// Generate synthetic posed scenes (rooms and courtyards of textured planes) in
     /// RealEstate10K layout, with exact ground-truth planes in each scene's scene.json.

@@ -167,6 +167,9 @@ struct RealPruning {
     pruned_ms: f64,
     /// Median of the paired exact / pruned ratios.
     speedup: f64,
+    /// Order-statistic interval of that median, and its coverage.
+    speedup_interval: [f64; 2],
+    speedup_coverage: f64,
     layers_pruned: usize,
     normals_pruned: usize,
     composited: f32,
@@ -274,7 +277,7 @@ fn time_pruning(
     let stats = render(mhi, camera, pruned)?.stats;
     // Exact and pruned alternate, so that a shared machine's swings hit both alike; the
     // speed-up is the median of the paired ratios.
-    let (exact_ms, pruned_ms, speedup) = pool.install(|| {
+    let (exact_ms, pruned_ms, speedup, ratios) = pool.install(|| {
         let time = |o: &RenderOptions<'_>| {
             let t0 = Instant::now();
             std::hint::black_box(render(mhi, camera, o).expect("valid scene"));
@@ -289,8 +292,10 @@ fn time_pruning(
             p.push(tp);
             r.push(te / tp);
         }
-        (median(e), median(p), median(r))
+        (median(e), median(p), median(r.clone()), r)
     });
+    let (speedup_interval, speedup_coverage) =
+        mhi_eval::stats::median_interval(&ratios, 0.95).context("a render time was not finite")?;
     Ok(RealPruning {
         mhi: what,
         scene,
@@ -298,6 +303,8 @@ fn time_pruning(
         exact_ms,
         pruned_ms,
         speedup,
+        speedup_interval,
+        speedup_coverage,
         layers_pruned: stats.layers_pruned,
         normals_pruned: stats.normals_pruned,
         composited: stats.composited,
@@ -470,7 +477,7 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
     );
     for r in &real {
         println!(
-            "  {} MHI of {} at {}x{}: exact {:.1} ms, pruned {:.1} ms (paired {:.2}x; {} layers and {} normals left out everywhere, {:.0} % of the tile-layer pairs and {:.0} % of the samples composited, bound {:.5})",
+            "  {} MHI of {} at {}x{}: exact {:.1} ms, pruned {:.1} ms (paired {:.2}x, {:.0} % interval of the median {:.2}–{:.2}x; {} layers and {} normals left out everywhere, {:.0} % of the tile-layer pairs and {:.0} % of the samples composited, bound {:.5})",
             r.mhi,
             r.scene,
             r.size.0,
@@ -478,6 +485,9 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
             r.exact_ms,
             r.pruned_ms,
             r.speedup,
+            100.0 * r.speedup_coverage,
+            r.speedup_interval[0],
+            r.speedup_interval[1],
             r.layers_pruned,
             r.normals_pruned,
             100.0 * r.composited,

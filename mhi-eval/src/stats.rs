@@ -62,6 +62,34 @@ impl Bootstrap {
         Some((mean, [at(tail), at(1.0 - tail)]))
     }
 
+    /// The ratio of sums `Σ num / Σ den` (a ratio of means, e.g. total exact time over total
+    /// pruned time) and its percentile bootstrap interval, the pairs `(num[i], den[i])`
+    /// resampled together. `None` for no pair, a non-finite value, a sum of `den` that is not
+    /// positive in the data, or slices of different lengths.
+    pub fn ratio_ci(&self, num: &[f64], den: &[f64]) -> Option<(f64, [f64; 2])> {
+        let n = num.len();
+        if n == 0 || den.len() != n || num.iter().chain(den).any(|v| !v.is_finite()) {
+            return None;
+        }
+        let ratio = |idx: &mut dyn Iterator<Item = usize>| {
+            let (a, b) = idx.fold((0.0, 0.0), |(a, b), i| (a + num[i], b + den[i]));
+            (b > 0.0).then(|| a / b)
+        };
+        let r = ratio(&mut (0..n))?;
+        let mut rng = ChaCha8Rng::seed_from_u64(self.seed ^ (n as u64).wrapping_mul(0x9E37_79B9));
+        // A resample whose denominators sum to zero has no ratio; it is left out.
+        let mut rs: Vec<f64> = (0..self.resamples.max(1))
+            .filter_map(|_| ratio(&mut (0..n).map(|_| rng.random_range(0..n))))
+            .collect();
+        if rs.is_empty() {
+            return Some((r, [r, r]));
+        }
+        rs.sort_by(f64::total_cmp);
+        let tail = (1.0 - self.level.clamp(0.0, 1.0)) / 2.0;
+        let at = |q: f64| rs[((q * (rs.len() - 1) as f64).round() as usize).min(rs.len() - 1)];
+        Some((r, [at(tail), at(1.0 - tail)]))
+    }
+
     /// The mean of the paired differences `a[i] − b[i]` and its bootstrap interval (triplets
     /// resampled together, so what the two methods share cancels).
     ///
@@ -142,6 +170,32 @@ mod tests {
             (half - 1.96 * (2.0_f64 / 1000.0).sqrt()).abs() < 0.02,
             "{half}"
         );
+    }
+
+    #[test]
+    fn ratio_interval_brackets_the_ratio_of_sums_and_narrows_with_more_pairs() {
+        let b = Bootstrap::default();
+        // Times that vary from view to view, the second always about half the first.
+        let exact: Vec<f64> = (0..40).map(|i| 20.0 + f64::from(i % 7) * 3.0).collect();
+        let pruned: Vec<f64> = exact
+            .iter()
+            .enumerate()
+            .map(|(i, e)| e / 2.0 + if i % 2 == 0 { 0.8 } else { -0.6 })
+            .collect();
+        let (r, ci) = b.ratio_ci(&exact, &pruned).unwrap();
+        let want = exact.iter().sum::<f64>() / pruned.iter().sum::<f64>();
+        assert!(
+            (r - want).abs() < 1e-12 && ci[0] < r && r < ci[1],
+            "{r} {ci:?}"
+        );
+        assert!(ci[0] > 1.9 && ci[1] < 2.1, "{ci:?}");
+        let (_, few) = b.ratio_ci(&exact[..8], &pruned[..8]).unwrap();
+        assert!(few[1] - few[0] > ci[1] - ci[0], "{few:?} against {ci:?}");
+        assert_eq!(b.ratio_ci(&[], &[]), None);
+        assert_eq!(b.ratio_ci(&[1.0], &[0.0]), None);
+        assert_eq!(b.ratio_ci(&[1.0, 2.0], &[1.0]), None);
+        assert_eq!(b.ratio_ci(&[1.0], &[f64::NAN]), None);
+        assert_eq!(b.ratio_ci(&[3.0], &[2.0]), Some((1.5, [1.5, 1.5])));
     }
 
     #[test]

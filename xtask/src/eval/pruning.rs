@@ -93,8 +93,10 @@ pub(super) struct PruneRow {
     pub(super) delta_psnr: Option<(f64, [f64; 2])>,
     pub(super) ms_pruned: f64,
     pub(super) ms_exact: f64,
-    /// Total exact render time over total pruned render time.
+    /// Total exact render time over total pruned render time, and its 95 % bootstrap interval
+    /// over views.
     pub(super) speedup: f64,
+    pub(super) speedup_ci: Option<[f64; 2]>,
     pub(super) layers: usize,
     pub(super) layers_pruned: f64,
     pub(super) normals_pruned: f64,
@@ -144,6 +146,12 @@ pub(super) fn prune_rows(ms_: &[PruneMeasure], boot: &Bootstrap) -> Vec<PruneRow
                 ms_pruned,
                 ms_exact,
                 speedup: ms_exact / ms_pruned.max(1e-9),
+                speedup_ci: boot
+                    .ratio_ci(
+                        &g.iter().map(|m| m.ms_exact).collect::<Vec<_>>(),
+                        &g.iter().map(|m| m.ms_pruned).collect::<Vec<_>>(),
+                    )
+                    .map(|(_, ci)| ci),
                 layers: g.first().map_or(0, |m| m.layers),
                 layers_pruned: mean(&|m| m.layers_pruned as f64),
                 normals_pruned: mean(&|m| m.normals_pruned as f64),
@@ -172,7 +180,7 @@ pub(super) fn prune_markdown(rows: &[PruneRow], a: &EvalArgs) -> String {
     }
     let _ = writeln!(
         s,
-        "Every MHI below was rendered both ways per view, exactly and within the error budget of {:.2} 8-bit level(s) per pixel (the default; `--exact` turns it off). |Δ| compares the two renders (not the ground truth); ΔPSNR is the change of covered PSNR against the ground truth (mean, 95 % interval); time is the render (and Soft blend) alone, the median of {} renders each way per view, exact and pruned alternating (so that the shared machine's swings hit both alike), and the speed-up the ratio of the mean times; layers and normals are those left out of the whole view, \"composited\" the share of (tile of 32 x 8 pixels, layer) pairs the pruned render still composited (it skips layers tile by tile where they are faint or hidden), \"samples\" the share of (pixel, layer) samples it composited (the transmittance stop skips more within a tile) and \"least possible\" the share an ideal plan that knew every pixel's exact contributions would still have to composite within the same budget (`mhi_render::needed_share` for a view that bounds the blended image alone — the sweep's and the oracle's; `mhi_render::needed_share_per_normal`, higher, for the multi-normal images of a learned MHI, which are kept for its blending network and so are each bounded on their own): its inverse is the most any leaving-out could speed the view up. The report's other tables score the pruned renders.\n",
+        "Every MHI below was rendered both ways per view, exactly and within the error budget of {:.2} 8-bit level(s) per pixel (the default; `--exact` turns it off). |Δ| compares the two renders (not the ground truth); ΔPSNR is the change of covered PSNR against the ground truth (mean, 95 % interval); time is the render (and Soft blend) alone, the median of {} renders each way per view, exact and pruned alternating (so that the shared machine's swings hit both alike), and the speed-up the ratio of the mean times (95 % interval, views resampled); layers and normals are those left out of the whole view, \"composited\" the share of (tile of 32 x 8 pixels, layer) pairs the pruned render still composited (it skips layers tile by tile where they are faint or hidden), \"samples\" the share of (pixel, layer) samples it composited (the transmittance stop skips more within a tile) and \"least possible\" the share an ideal plan that knew every pixel's exact contributions would still have to composite within the same budget (`mhi_render::needed_share` for a view that bounds the blended image alone — the sweep's and the oracle's; `mhi_render::needed_share_per_normal`, higher, for the multi-normal images of a learned MHI, which are kept for its blending network and so are each bounded on their own): its inverse is the most any leaving-out could speed the view up. The report's other tables score the pruned renders.\n",
         a.budget,
         super::methods::PAIRED_RUNS
     );
@@ -180,7 +188,7 @@ pub(super) fn prune_markdown(rows: &[PruneRow], a: &EvalArgs) -> String {
     for r in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.5} | {:.6} | {:.5} | {} | {} | {:.1} | {:.1} | {:.2}x | {:.1} of {} | {:.2} of {} | {:.0} % | {:.0} % | {:.0} % (≤ {:.2}x) |",
+            "| {} | {} | {:.5} | {:.6} | {:.5} | {} | {} | {:.1} | {:.1} | {} | {:.1} of {} | {:.2} of {} | {:.0} % | {:.0} % | {:.0} % (≤ {:.2}x) |",
             config_label(&r.method, r.normals, r.planes),
             r.views,
             r.max_abs,
@@ -192,7 +200,10 @@ pub(super) fn prune_markdown(rows: &[PruneRow], a: &EvalArgs) -> String {
             )),
             r.ms_exact,
             r.ms_pruned,
-            r.speedup,
+            match r.speedup_ci {
+                Some([lo, hi]) => format!("{:.2}x [{lo:.2}, {hi:.2}]", r.speedup),
+                None => format!("{:.2}x", r.speedup),
+            },
             r.layers_pruned,
             r.layers,
             r.normals_pruned,

@@ -40,6 +40,8 @@ pub struct TimePoint {
     pub ms: f64,
     /// Quality (PSNR dB, higher is better).
     pub psnr: f64,
+    /// Its 95 % interval, drawn as a vertical bar through the point (`None`: no bar).
+    pub psnr_ci: Option<[f64; 2]>,
 }
 
 /// A curve of the training figure.
@@ -123,7 +125,12 @@ fn draw_error_vs_time<DB: DrawingBackend>(
 ) -> Result<(), String> {
     let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     root.fill(&WHITE).map_err(e)?;
-    let (ylo, yhi) = range(points.iter().map(|p| p.psnr), 0.12);
+    // The y range holds every point and every interval.
+    let ys = points.iter().flat_map(|p| {
+        let [lo, hi] = p.psnr_ci.unwrap_or([p.psnr, p.psnr]);
+        [p.psnr, lo, hi]
+    });
+    let (ylo, yhi) = range(ys.filter(|v| v.is_finite()), 0.12);
     let xs = points.iter().map(|p| p.ms.max(1e-3));
     let xlo = xs.clone().fold(f64::INFINITY, f64::min);
     let xhi = xs.fold(f64::NEG_INFINITY, f64::max);
@@ -171,9 +178,30 @@ fn draw_error_vs_time<DB: DrawingBackend>(
             )
         }))
         .map_err(e)?;
+    // 95 % intervals: a bar with short caps, under the points.
+    for (i, (p, &(x, _))) in points.iter().zip(&pts).enumerate() {
+        let Some([lo, hi]) = p.psnr_ci.filter(|c| c.iter().all(|v| v.is_finite())) else {
+            continue;
+        };
+        let style = ShapeStyle::from(&COLORS[i % COLORS.len()]).stroke_width(1);
+        let (xl, xr) = (x / 1.04, x * 1.04);
+        chart
+            .draw_series([
+                PathElement::new(vec![(x, lo), (x, hi)], style),
+                PathElement::new(vec![(xl, lo), (xr, lo)], style),
+                PathElement::new(vec![(xl, hi), (xr, hi)], style),
+            ])
+            .map_err(e)?;
+    }
+    // Points at nearly the same place (an MHI rendered pruned and exactly) would print their
+    // labels over each other: each such label moves down a line per earlier neighbour.
+    let near = |a: (f64, f64), b: (f64, f64)| {
+        (a.0.ln() - b.0.ln()).abs() < 0.3 && (a.1 - b.1).abs() < 0.04 * (yhi - ylo)
+    };
     for (i, (p, xy)) in points.iter().zip(&pts).enumerate() {
         let color = COLORS[i % COLORS.len()];
         let on_front = front.contains(&i);
+        let below = pts[..i].iter().filter(|q| near(**q, *xy)).count() as i32;
         // The label sits level with its point, to its right, or to its left near the right edge.
         let right_half = xy.0.ln() > (xlo.ln() + xhi.ln()) / 2.0;
         let dx = if right_half {
@@ -187,7 +215,7 @@ fn draw_error_vs_time<DB: DrawingBackend>(
                     + Circle::new((0, 0), if on_front { 7 } else { 5 }, color.filled())
                     + Text::new(
                         p.label.clone(),
-                        (dx, -7),
+                        (dx, -7 + 16 * below),
                         ("sans-serif", 14).into_font().color(&color),
                     ),
             ))
@@ -321,7 +349,7 @@ where
 }
 
 /// `stem.svg` and `stem.png`: PSNR against milliseconds per view (log scale), one labelled point
-/// per method and configuration, the Pareto front drawn.
+/// per method and configuration with its 95 % interval as a bar, the Pareto front drawn.
 pub fn error_vs_time(stem: &Path, points: &[TimePoint], title: &str) -> Result<(), PlotError> {
     svg_and_png!(stem, draw_error_vs_time, points, title)
 }
@@ -354,21 +382,62 @@ mod tests {
                 label: "a N=5 D=8".into(),
                 ms: 10.0,
                 psnr: 20.0,
+                psnr_ci: None,
             },
             TimePoint {
                 label: "b".into(),
                 ms: 1.0,
                 psnr: 15.0,
+                psnr_ci: None,
             },
             TimePoint {
                 label: "c".into(),
                 ms: 30.0,
                 psnr: 18.0,
+                psnr_ci: None,
             },
         ];
         error_vs_time(&d.path().join("e"), &pts, "test").unwrap();
         let svg = std::fs::read_to_string(d.path().join("e.svg")).unwrap();
         assert!(svg.contains("a N=5 D=8") && svg.contains("Pareto"));
+        // With intervals: a bar of three thin lines in the point's colour per point, and the
+        // y axis reaching the intervals' ends (a bar outside it would leave the drawing area).
+        let bars = |svg: &str| -> Vec<Vec<(f64, f64)>> {
+            svg.split("<polyline")
+                .skip(1)
+                .map(|p| &p[..p.find("/>").unwrap_or(p.len())])
+                .filter(|t| t.contains("stroke-width=\"1\"") && !t.contains("#000000"))
+                .map(|t| {
+                    let pts = t.split("points=\"").nth(1).unwrap_or("");
+                    pts.split_whitespace()
+                        .filter_map(|xy| {
+                            let (x, y) = xy.trim_end_matches('"').split_once(',')?;
+                            Some((x.parse().ok()?, y.parse().ok()?))
+                        })
+                        .collect()
+                })
+                .collect()
+        };
+        assert!(bars(&svg).is_empty());
+        let with_ci: Vec<TimePoint> = pts
+            .iter()
+            .map(|p| TimePoint {
+                psnr_ci: Some([p.psnr - 1.0, p.psnr + 9.0]),
+                ..p.clone()
+            })
+            .collect();
+        error_vs_time(&d.path().join("f"), &with_ci, "test").unwrap();
+        let svg_ci = std::fs::read_to_string(d.path().join("f.svg")).unwrap();
+        let b = bars(&svg_ci);
+        assert_eq!(b.len(), 9, "three lines a bar");
+        // The plot area starts 43 px from the top (margin and caption); a bar the y range left
+        // out is clipped there, one inside it ends below the range's padding.
+        for (x, y) in b.iter().flatten() {
+            assert!(
+                *x > 0.0 && *y > 60.0 && *y < f64::from(SIZE.1) - 44.0,
+                "bar at ({x}, {y}) clipped or outside the plot"
+            );
+        }
         let png = image::open(d.path().join("e.png")).unwrap().to_rgb8();
         assert_eq!(png.dimensions(), SIZE);
         // Something besides the white background was drawn, including text pixels.

@@ -47,19 +47,10 @@ impl Bootstrap {
         if n == 1 {
             return Some((mean, [mean, mean]));
         }
-        // The stream depends on the seed and the sample size only, so two methods scored on the
-        // same triplets resample the same triplets.
-        let mut rng = ChaCha8Rng::seed_from_u64(self.seed ^ (n as u64).wrapping_mul(0x9E37_79B9));
-        let mut means: Vec<f64> = (0..self.resamples.max(1))
-            .map(|_| (0..n).map(|_| values[rng.random_range(0..n)]).sum::<f64>() / n as f64)
-            .collect();
-        means.sort_by(f64::total_cmp);
-        let tail = (1.0 - self.level.clamp(0.0, 1.0)) / 2.0;
-        let at = |q: f64| {
-            let i = (q * (means.len() - 1) as f64).round() as usize;
-            means[i.min(means.len() - 1)]
-        };
-        Some((mean, [at(tail), at(1.0 - tail)]))
+        let ci = self.interval(n, |idx| {
+            Some(idx.map(|i| values[i]).sum::<f64>() / n as f64)
+        })?;
+        Some((mean, ci))
     }
 
     /// The ratio of sums `Σ num / Σ den` (a ratio of means, e.g. total exact time over total
@@ -76,18 +67,30 @@ impl Bootstrap {
             (b > 0.0).then(|| a / b)
         };
         let r = ratio(&mut (0..n))?;
-        let mut rng = ChaCha8Rng::seed_from_u64(self.seed ^ (n as u64).wrapping_mul(0x9E37_79B9));
         // A resample whose denominators sum to zero has no ratio; it is left out.
-        let mut rs: Vec<f64> = (0..self.resamples.max(1))
-            .filter_map(|_| ratio(&mut (0..n).map(|_| rng.random_range(0..n))))
+        Some((r, self.interval(n, ratio).unwrap_or([r, r])))
+    }
+
+    /// The central `level` of `stat` over `resamples` bootstrap resamples of `n` items (each
+    /// given as the iterator of its drawn indices); resamples whose `stat` is `None` are left
+    /// out, and `None` when all are. The stream depends on the seed and `n` only, so two
+    /// methods scored on the same triplets resample the same triplets.
+    fn interval(
+        &self,
+        n: usize,
+        stat: impl Fn(&mut dyn Iterator<Item = usize>) -> Option<f64>,
+    ) -> Option<[f64; 2]> {
+        let mut rng = ChaCha8Rng::seed_from_u64(self.seed ^ (n as u64).wrapping_mul(0x9E37_79B9));
+        let mut v: Vec<f64> = (0..self.resamples.max(1))
+            .filter_map(|_| stat(&mut (0..n).map(|_| rng.random_range(0..n))))
             .collect();
-        if rs.is_empty() {
-            return Some((r, [r, r]));
+        if v.is_empty() {
+            return None;
         }
-        rs.sort_by(f64::total_cmp);
+        v.sort_by(f64::total_cmp);
         let tail = (1.0 - self.level.clamp(0.0, 1.0)) / 2.0;
-        let at = |q: f64| rs[((q * (rs.len() - 1) as f64).round() as usize).min(rs.len() - 1)];
-        Some((r, [at(tail), at(1.0 - tail)]))
+        let at = |q: f64| v[((q * (v.len() - 1) as f64).round() as usize).min(v.len() - 1)];
+        Some([at(tail), at(1.0 - tail)])
     }
 
     /// The mean of the paired differences `a[i] − b[i]` and its bootstrap interval (triplets

@@ -567,6 +567,43 @@ fn open_span((mut a, mut b): (usize, usize), t: &[f32], thr: &[f32]) -> (usize, 
     (a, b)
 }
 
+/// The span `a..b` without the samples at either end whose bilinear taps all lie outside the
+/// `rw × rh` image (they read zero: the test of [`sample_zero_padded`]). Along a target row the
+/// samples lie on a line, so the ones that touch the image are one stretch of it (a few pixels
+/// there may still fall outside by rounding; they are composited and read zero).
+#[inline(always)]
+fn inside_span(
+    sxs: &[f32],
+    sys: &[f32],
+    (mut a, mut b): (usize, usize),
+    (rw, rh): (usize, usize),
+) -> (usize, usize) {
+    let (w, h) = (rw as f32, rh as f32);
+    let outside = |x: usize| !(sxs[x] > -1.0 && sys[x] > -1.0 && sxs[x] < w && sys[x] < h);
+    while a < b && outside(a) {
+        a += 1;
+    }
+    while b > a && outside(b - 1) {
+        b -= 1;
+    }
+    (a, b)
+}
+
+/// How many pixels of `span` are still open (transmittance above their stop; all of them
+/// without a stop).
+#[inline(always)]
+fn open_count(t: &[f32], thr: &[f32], stop: bool, span: std::ops::Range<usize>) -> usize {
+    if stop {
+        t[span.clone()]
+            .iter()
+            .zip(&thr[span])
+            .filter(|(t, th)| **t > **th)
+            .count()
+    } else {
+        span.len()
+    }
+}
+
 /// Render the MHI from `target` (the fast path).
 ///
 /// # Errors
@@ -964,6 +1001,20 @@ impl RowContext<'_> {
                                 u32::MAX
                             };
                         }
+                        // A sample whose four taps all lie outside the image reads zero
+                        // alpha and colour: in front of the far layer it changes nothing (its
+                        // `T · 0` adds no colour and takes no transmittance), so the run drops
+                        // those at its ends and counts them as composited: the same bits, and
+                        // an exact render's samples stay 100 %. (The far layer composites them:
+                        // alpha 1, colour zero.)
+                        let (x0, x1) = if far {
+                            (x0, x1)
+                        } else {
+                            let (a, b) = inside_span(&sxs, &sys, (x0, x1), (rw, rh));
+                            samples += open_count(&row.t, &row.thr, stop, x0..a)
+                                + open_count(&row.t, &row.thr, stop, b..x1);
+                            (a, b)
+                        };
                         // The texels the run reads: where to prefetch the next layer.
                         let (lo, hi) = idx[x0..x1].iter().fold((u32::MAX, 0), |(lo, hi), &i| {
                             (lo.min(i), hi.max(i.wrapping_add(1)))
@@ -1343,6 +1394,99 @@ mod tests {
                 }
                 assert_eq!(fast.stats, base.stats);
             }
+        }
+    }
+
+    #[test]
+    fn an_exact_render_is_every_sample_composited_to_the_bit() {
+        // A target moved and turned far enough that most layers' samples fall outside the
+        // reference image on one side (the run trims those) and inside on the other: every
+        // multi-normal image must be, bit for bit, the front-to-back composite of every sample
+        // through the general zero-padded sampler, and every sample must count.
+        let k = Intrinsics::new(20.0, 20.0, 18.0, 12.0).unwrap();
+        let reference = Camera::new(k, RigidTransform::IDENTITY, 37, 23).unwrap();
+        let (n, d, px) = (3, 6, 37 * 23);
+        let value = |i: usize| ((i * 7919) % 1000) as f32 / 999.0;
+        let color = LayerColor::Shared(Rgb32FImage::from_fn(37, 23, |x, y| {
+            let i = (y * 37 + x) as usize * 3;
+            image::Rgb([value(i), value(i + 1), value(i + 2)])
+        }));
+        let alpha = (0..n * d * px).map(|i| value(i * 3 + 1)).collect();
+        let mhi = Mhi::new(
+            mhi_geom::NormalSet::paper_subset(n).unwrap(),
+            depths_linear_in_disparity(1.0, 50.0, d).unwrap(),
+            reference,
+            color,
+            alpha,
+        )
+        .unwrap();
+        for (angle, t) in [
+            (0.35, DVec3::new(0.6, -0.2, 0.1)),
+            (-0.5, DVec3::new(-0.4, 0.3, -0.2)),
+        ] {
+            let rel = RigidTransform::new(
+                DMat3::from_axis_angle(DVec3::new(0.2, 1.0, 0.1).normalize(), angle),
+                t,
+            )
+            .unwrap();
+            let target = Camera::new(k, rel.inverse(), 41, 19).unwrap();
+            let opts = RenderOptions {
+                keep_multi_normal: true,
+                ..Default::default()
+            };
+            let got = render(&mhi, &target, &opts).unwrap();
+            assert_eq!(got.stats.samples, 1.0);
+            let hs = layer_homographies(&mhi, &target);
+            let (rw, rh) = (37, 23);
+            let mut outside = 0;
+            for i in 0..n {
+                let color = match mhi.color() {
+                    LayerColor::Shared(img) => img.as_raw(),
+                    LayerColor::PerLayer(_) => unreachable!(),
+                };
+                for y in 0..19 {
+                    for x in 0..41 {
+                        let (mut t, mut c) = (1.0_f32, [0.0_f32; 3]);
+                        for j in (0..d).rev() {
+                            let Some(h) = hs[i * d + j] else { continue };
+                            // Pass 1's arithmetic, then the general sampler.
+                            let (u, v) = (x as i32 as f32 + 0.5, y as f32 + 0.5);
+                            let (bx, by, bw) = (h[1] * v + h[2], h[4] * v + h[5], h[7] * v + h[8]);
+                            let w = h[6] * u + bw;
+                            let ok = w > W_EPS;
+                            let inv = 1.0 / if ok { w } else { 1.0 };
+                            let sx = if ok {
+                                (h[0] * u + bx) * inv - 0.5
+                            } else {
+                                -2.0
+                            };
+                            let sy = if ok {
+                                (h[3] * u + by) * inv - 0.5
+                            } else {
+                                -2.0
+                            };
+                            let (a, col) = sample(mhi.alpha_layer(i, j), color, rw, rh, sx, sy);
+                            if !(sx > -1.0 && sy > -1.0 && sx < rw as f32 && sy < rh as f32) {
+                                outside += 1;
+                            }
+                            let a = if j == 0 { 1.0 } else { a };
+                            let ta = t * a;
+                            for (c, v) in c.iter_mut().zip(col) {
+                                *c += ta * v;
+                            }
+                            t -= ta;
+                        }
+                        let p = got.multi_normal[i].get_pixel(x, y).0;
+                        assert_eq!(
+                            p.map(f32::to_bits),
+                            c.map(f32::to_bits),
+                            "normal {i} pixel ({x}, {y})"
+                        );
+                    }
+                }
+            }
+            // The poses do send many samples off the image.
+            assert!(outside > n * d * 41 * 19 / 10, "{outside} samples outside");
         }
     }
 

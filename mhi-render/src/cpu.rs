@@ -494,11 +494,31 @@ fn tile_plans(
 ) -> Vec<TilePlan> {
     let (n, d) = (mhi.n(), mhi.d());
     let (tiles_x, tiles_y) = (tw.div_ceil(TILE_W), th.div_ceil(TILE_H));
+    let tile_rect = |k: usize| {
+        let (x0, y0) = ((k % tiles_x) * TILE_W, (k / tiles_x) * TILE_H);
+        ((x0, (x0 + TILE_W).min(tw)), (y0, (y0 + TILE_H).min(th)))
+    };
+    // The alpha bounds of every layer a plan may leave out, over every tile: layer by layer, so
+    // that one layer's block ranges stay in the cache while every tile reads them (tile by
+    // tile, each tile's 80-odd reads went to as many tables).
+    let ranges: Vec<Vec<(f32, f32)>> = (0..n * d)
+        .into_par_iter()
+        .map(|l| {
+            let (i, j) = (l / d, l % d);
+            match hs[l].as_ref() {
+                Some(h) if share > 0.0 && j > 0 && active[i] => (0..tiles_x * tiles_y)
+                    .map(|k| {
+                        let (xs, ys) = tile_rect(k);
+                        footprint_range(mhi, (i, j), h, xs, ys)
+                    })
+                    .collect(),
+                _ => Vec::new(),
+            }
+        })
+        .collect();
     (0..tiles_x * tiles_y)
         .into_par_iter()
         .map(|k| {
-            let (x0, y0) = ((k % tiles_x) * TILE_W, (k / tiles_x) * TILE_H);
-            let (x1, y1) = ((x0 + TILE_W).min(tw), (y0 + TILE_H).min(th));
             let mut plan = TilePlan {
                 layers: vec![Vec::new(); n],
                 mass: 0.0,
@@ -508,16 +528,16 @@ fn tile_plans(
                 // The layers skipped everywhere count first, at their largest alpha here.
                 let mut mass = 0.0_f32;
                 for j in (1..d).filter(|j| global_skip[i][*j]) {
-                    if let Some(h) = hs[i * d + j].as_ref() {
-                        mass += footprint_range(mhi, (i, j), h, (x0, x1), (y0, y1)).1;
+                    if let Some(r) = ranges[i * d + j].get(k) {
+                        mass += r.1;
                     }
                 }
                 let mut t_up = 1.0_f32;
                 let mut kept = Vec::with_capacity(d);
                 for j in (0..d).rev() {
-                    let Some(h) = hs[i * d + j].as_ref() else {
+                    if hs[i * d + j].is_none() {
                         continue;
-                    };
+                    }
                     plan.visible += 1;
                     if j == 0 || share <= 0.0 {
                         kept.push(j);
@@ -526,7 +546,7 @@ fn tile_plans(
                     if global_skip[i][j] {
                         continue;
                     }
-                    let (lo, hi) = footprint_range(mhi, (i, j), h, (x0, x1), (y0, y1));
+                    let (lo, hi) = ranges[i * d + j][k];
                     let cost = hi * t_up;
                     if mass + cost <= share {
                         mass += cost;

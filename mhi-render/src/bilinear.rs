@@ -24,3 +24,22 @@ pub(crate) fn mix<const C: usize>(w: &[f32; 4], taps: [[f32; C]; 4]) -> [f32; C]
     }
     out
 }
+
+/// [`mix`], or with each further product added by a fused multiply-add (`FUSED`: one rounding
+/// instead of two, so the last bits differ from [`mix`]'s). Only code compiled for FMA should
+/// ask for the fused form: without the instruction `mul_add` is a library call.
+#[inline(always)]
+pub(crate) fn mix_as<const FUSED: bool, const C: usize>(
+    w: &[f32; 4],
+    taps: [[f32; C]; 4],
+) -> [f32; C] {
+    if !FUSED {
+        return mix(w, taps);
+    }
+    let mut out = [0.0_f32; C];
+    for (c, o) in out.iter_mut().enumerate() {
+        let s = w[1].mul_add(taps[1][c], w[0] * taps[0][c]);
+        *o = w[3].mul_add(taps[3][c], w[2].mul_add(taps[2][c], s));
+    }
+    out
+}

@@ -994,14 +994,18 @@ impl RowContext<'_> {
                         let (wmax, hmax) = ((rw - 1) as f32, (rh - 1) as f32);
                         // Zipped slices, not indices: bounds checks in the loop would keep
                         // it from being vectorised.
-                        let pass1 = sxs[x0..x1]
+                        // Over whole groups of eight pixels (the AVX2 width; the extra
+                        // positions are never read): a run of a pruned render starts and ends
+                        // anywhere, and the scalar head and tail cost more than the lanes.
+                        let (p0, p1) = (x0 & !7, ((x1 + 7) & !7).min(tw));
+                        let pass1 = sxs[p0..p1]
                             .iter_mut()
-                            .zip(&mut sys[x0..x1])
-                            .zip(&mut fxs[x0..x1])
-                            .zip(&mut fys[x0..x1])
-                            .zip(&mut idx[x0..x1]);
+                            .zip(&mut sys[p0..p1])
+                            .zip(&mut fxs[p0..p1])
+                            .zip(&mut fys[p0..p1])
+                            .zip(&mut idx[p0..p1]);
                         for (k, ((((sx_out, sy_out), fx), fy), ix)) in pass1.enumerate() {
-                            let u = (x0 + k) as i32 as f32 + 0.5;
+                            let u = (p0 + k) as i32 as f32 + 0.5;
                             let w = h[6] * u + bw;
                             let ok = w > W_EPS;
                             let inv = 1.0 / if ok { w } else { 1.0 };

@@ -912,6 +912,10 @@ impl RowContext<'_> {
         let (mut sxs, mut sys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
         let (mut fxs, mut fys) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
         let mut idx = vec![0_u32; tw];
+        // And of the second layer of a pair (exact renders).
+        let (mut sxs2, mut sys2) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
+        let (mut fxs2, mut fys2) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
+        let mut idx2 = vec![0_u32; tw];
         let stop = eps > 0.0;
         // Without the multi-normal images only the blend is bounded: Σ_i w_i · stop_i within
         // the tile's stop share. Each kept normal spends an equal part of it, so a pixel's
@@ -919,6 +923,88 @@ impl RowContext<'_> {
         // late); with them, each normal's image is bounded on its own.
         let kept = active.iter().filter(|a| **a).count();
         let weighted = stop && !keep && kept > 1;
+
+        // Pass 1 and pass 2's fetch for the two-layer path of exact renders, written as the
+        // single-layer path writes them (macros, so that both compile to the same inner code).
+        macro_rules! positions {
+            ($h:ident, $v:expr, ($p0:expr, $p1:expr), $sxs:ident, $sys:ident, $fxs:ident, $fys:ident, $idx:ident) => {{
+                let (h, v, p0, p1) = ($h, $v, $p0, $p1);
+                let (bx, by, bw) = (h[1] * v + h[2], h[4] * v + h[5], h[7] * v + h[8]);
+                let (wmax, hmax) = ((rw - 1) as f32, (rh - 1) as f32);
+                let pass1 = $sxs[p0..p1]
+                    .iter_mut()
+                    .zip(&mut $sys[p0..p1])
+                    .zip(&mut $fxs[p0..p1])
+                    .zip(&mut $fys[p0..p1])
+                    .zip(&mut $idx[p0..p1]);
+                for (k, ((((sx_out, sy_out), fx), fy), ix)) in pass1.enumerate() {
+                    let u = (p0 + k) as i32 as f32 + 0.5;
+                    let w = h[6] * u + bw;
+                    let ok = w > W_EPS;
+                    let inv = 1.0 / if ok { w } else { 1.0 };
+                    let sx = if ok {
+                        (h[0] * u + bx) * inv - 0.5
+                    } else {
+                        -2.0
+                    };
+                    let sy = if ok {
+                        (h[3] * u + by) * inv - 0.5
+                    } else {
+                        -2.0
+                    };
+                    *sx_out = sx;
+                    *sy_out = sy;
+                    let inside = sx >= 0.0 && sy >= 0.0 && sx < wmax && sy < hmax;
+                    let (xf, yf) = (floor_small(sx, inside), floor_small(sy, inside));
+                    *fx = sx - xf;
+                    *fy = sy - yf;
+                    *ix = if inside {
+                        small_to_u32(yf) * rw as u32 + small_to_u32(xf)
+                    } else {
+                        u32::MAX
+                    };
+                }
+            }};
+        }
+        macro_rules! fetch {
+            ($alpha:ident, $color:ident, $ix:expr, $fx:expr, $fy:expr, $sx:expr, $sy:expr) => {{
+                let (ix, fx, fy, sx, sy) = ($ix, $fx, $fy, $sx, $sy);
+                if ix != u32::MAX {
+                    let i = ix as usize;
+                    let w = bilinear::weights(fx, fy);
+                    let wa = &$alpha[i..i + rw + 2];
+                    let wc = &$color[3 * i..3 * (i + rw) + 6];
+                    let [a] = bilinear::mix_as::<FUSED, 1>(
+                        &w,
+                        [[wa[0]], [wa[1]], [wa[rw]], [wa[rw + 1]]],
+                    );
+                    let (top, bot) = (&wc[..6], &wc[3 * rw..3 * rw + 6]);
+                    let left = |t: &[f32]| [t[0], t[1], t[2], t[3]];
+                    let right = |t: &[f32]| [t[3], t[4], t[5], t[2]];
+                    let c = bilinear::mix_as::<FUSED, 4>(
+                        &w,
+                        [left(top), right(top), left(bot), right(bot)],
+                    );
+                    (a, c)
+                } else {
+                    let (a, [r, g, b]) = sample::<FUSED>($alpha, $color, rw, rh, sx, sy);
+                    (a, [r, g, b, 0.0])
+                }
+            }};
+        }
+        macro_rules! composite {
+            ($tx:ident, $cx:ident, $a:expr, $col:expr) => {{
+                let ta = *$tx * $a;
+                for (c, v) in $cx.iter_mut().zip($col) {
+                    *c = if FUSED {
+                        ta.mul_add(v, *c)
+                    } else {
+                        *c + ta * v
+                    };
+                }
+                *$tx -= ta;
+            }};
+        }
         let mut samples = 0_usize;
         let band = &tiles[(y0 / TILE_H) * tiles_x..][..tiles_x];
         let tile_stop: Vec<f32> = band.iter().map(stop_of).collect();
@@ -954,7 +1040,85 @@ impl RowContext<'_> {
             // Layers near to far (each pixel still sees its layers in front-to-back order),
             // each across every row of the band; in a row, adjacent tiles that composite
             // layer j form one run. An exact render's runs are whole rows.
-            for j in (0..d).rev() {
+            let mut next_j = d;
+            while next_j > 0 {
+                next_j -= 1;
+                let j = next_j;
+                // An exact render composites every visible layer over whole rows: two layers
+                // go through a row together, so that each pixel's colour and transmittance
+                // are read and written once for both (in the same order: the same bits), and
+                // the two layers after them are prefetched meanwhile. Pruned renders (runs,
+                // stops) and a layer whose neighbour is not visible take the path after it.
+                if !stop && j > 0 && hs[i * d + j].is_some() && hs[i * d + j - 1].is_some() {
+                    let j2 = j - 1;
+                    next_j = j2;
+                    let h1 = hs[i * d + j].unwrap_or([0.0; 9]);
+                    let h2 = hs[i * d + j2].unwrap_or([0.0; 9]);
+                    let far2 = j2 == 0;
+                    let (alpha1, alpha2) = (mhi.alpha_layer(i, j), mhi.alpha_layer(i, j2));
+                    let (color1, color2) = (color_of(i * d + j), color_of(i * d + j2));
+                    if seen.0 < seen.1 {
+                        let (from, to) = (seen.0, seen.1 + rw + 2);
+                        for jn in j2.saturating_sub(2)..j2 {
+                            prefetch(mhi.alpha_layer(i, jn), from, to);
+                            if let LayerColor::PerLayer(_) = mhi.color() {
+                                prefetch(color_of(i * d + jn), 3 * from, 3 * to);
+                            }
+                        }
+                    }
+                    seen = (usize::MAX, 0);
+                    for row in &mut band_rows {
+                        positions!(h1, row.v, (0, tw), sxs, sys, fxs, fys, idx);
+                        positions!(h2, row.v, (0, tw), sxs2, sys2, fxs2, fys2, idx2);
+                        let (x0, x1) = if far2 {
+                            (0, tw)
+                        } else {
+                            let (a1, b1) = inside_span(&sxs, &sys, (0, tw), (rw, rh));
+                            let (a2, b2) = inside_span(&sxs2, &sys2, (0, tw), (rw, rh));
+                            (a1.min(a2), b1.max(b2))
+                        };
+                        samples += 2 * tw;
+                        let (lo, hi) = idx[x0..x1]
+                            .iter()
+                            .chain(&idx2[x0..x1])
+                            .fold((u32::MAX, 0), |(lo, hi), &i| {
+                                (lo.min(i), hi.max(i.wrapping_add(1)))
+                            });
+                        if lo < hi {
+                            seen = (seen.0.min(lo as usize), seen.1.max(hi as usize));
+                        }
+                        let run = x0..x1;
+                        let first = idx[run.clone()]
+                            .iter()
+                            .zip(fxs[run.clone()].iter().zip(&fys[run.clone()]))
+                            .zip(sxs[run.clone()].iter().zip(&sys[run.clone()]));
+                        let second = idx2[run.clone()]
+                            .iter()
+                            .zip(fxs2[run.clone()].iter().zip(&fys2[run.clone()]))
+                            .zip(sxs2[run.clone()].iter().zip(&sys2[run.clone()]));
+                        let pixels = row.t[run.clone()]
+                            .iter_mut()
+                            .zip(row.c[4 * x0..4 * x1].as_chunks_mut::<4>().0)
+                            .zip(first.zip(second));
+                        for (
+                            (tx, cx),
+                            (
+                                ((&ix1, (&fx1, &fy1)), (&sx1, &sy1)),
+                                ((&ix2, (&fx2, &fy2)), (&sx2, &sy2)),
+                            ),
+                        ) in pixels
+                        {
+                            let (a, col) = fetch!(alpha1, color1, ix1, fx1, fy1, sx1, sy1);
+                            composite!(tx, cx, a, col);
+                            let (a, col) = fetch!(alpha2, color2, ix2, fx2, fy2, sx2, sy2);
+                            composite!(tx, cx, if far2 { 1.0 } else { a }, col);
+                        }
+                        for n in &mut row.next {
+                            *n += 2;
+                        }
+                    }
+                    continue;
+                }
                 let (h, far) = (hs[i * d + j].unwrap_or([0.0; 9]), j == 0);
                 let alpha = mhi.alpha_layer(i, j);
                 let color = color_of(i * d + j);
@@ -1464,7 +1628,8 @@ mod tests {
         // through the general zero-padded sampler, and every sample must count.
         let k = Intrinsics::new(20.0, 20.0, 18.0, 12.0).unwrap();
         let reference = Camera::new(k, RigidTransform::IDENTITY, 37, 23).unwrap();
-        let (n, d, px) = (3, 6, 37 * 23);
+        // Seven layers: three pairs, then the far layer alone.
+        let (n, d, px) = (3, 7, 37 * 23);
         let value = |i: usize| ((i * 7919) % 1000) as f32 / 999.0;
         let color = LayerColor::Shared(Rgb32FImage::from_fn(37, 23, |x, y| {
             let i = (y * 37 + x) as usize * 3;

@@ -598,8 +598,7 @@ fn inside_span(
     (mut a, mut b): (usize, usize),
     (rw, rh): (usize, usize),
 ) -> (usize, usize) {
-    let (w, h) = (rw as f32, rh as f32);
-    let outside = |x: usize| !(sxs[x] > -1.0 && sys[x] > -1.0 && sxs[x] < w && sys[x] < h);
+    let outside = |x: usize| !touches_image(sxs[x], sys[x], rw, rh);
     while a < b && outside(a) {
         a += 1;
     }
@@ -607,6 +606,25 @@ fn inside_span(
         b -= 1;
     }
     (a, b)
+}
+
+/// Whether a bilinear sample at `(sx, sy)` has a tap inside the `w × h` image (otherwise it
+/// reads zero under zero padding). NaN positions touch nothing.
+#[inline(always)]
+fn touches_image(sx: f32, sy: f32, w: usize, h: usize) -> bool {
+    sx > -1.0 && sy > -1.0 && sx < w as f32 && sy < h as f32
+}
+
+/// Where a run's samples read (`idx` from pass 1): `seen`, the texels the layer's runs read so
+/// far (lowest, one past the highest), widened to hold them; the next layer is prefetched there.
+#[inline(always)]
+fn widen_reads(seen: &mut (usize, usize), idx: &[u32]) {
+    let (lo, hi) = idx.iter().fold((u32::MAX, 0), |(lo, hi), &i| {
+        (lo.min(i), hi.max(i.wrapping_add(1)))
+    });
+    if lo < hi {
+        *seen = (seen.0.min(lo as usize), seen.1.max(hi as usize));
+    }
 }
 
 /// How many pixels of `span` are still open (transmittance above their stop; all of them
@@ -1012,6 +1030,18 @@ impl RowContext<'_> {
                 *$tx -= ta;
             }};
         }
+        // Fetch layer `(i, j)`'s texels (and its colour, per layer) where the last layer's runs
+        // read, `seen` widened by a row: a band reads a few short rows of each of N · D layers,
+        // too short for the hardware to see a stream in.
+        let prefetch_layer = |i: usize, j: usize, seen: (usize, usize)| {
+            if seen.0 < seen.1 {
+                let (from, to) = (seen.0, seen.1 + rw + 2);
+                prefetch(mhi.alpha_layer(i, j), from, to);
+                if let LayerColor::PerLayer(_) = mhi.color() {
+                    prefetch(color_of(i * d + j), 3 * from, 3 * to);
+                }
+            }
+        };
         let mut samples = 0_usize;
         let band = &tiles[(y0 / TILE_H) * tiles_x..][..tiles_x];
         let tile_stop: Vec<f32> = band.iter().map(stop_of).collect();
@@ -1056,22 +1086,16 @@ impl RowContext<'_> {
                 // are read and written once for both (in the same order: the same bits), and
                 // the two layers after them are prefetched meanwhile. Pruned renders (runs,
                 // stops) and a layer whose neighbour is not visible take the path after it.
-                if !stop && j > 0 && hs[i * d + j].is_some() && hs[i * d + j - 1].is_some() {
+                if let (false, true, Some(h1), Some(h2)) =
+                    (stop, j > 0, hs[i * d + j], hs[i * d + j.saturating_sub(1)])
+                {
                     let j2 = j - 1;
                     next_j = j2;
-                    let h1 = hs[i * d + j].unwrap_or([0.0; 9]);
-                    let h2 = hs[i * d + j2].unwrap_or([0.0; 9]);
                     let far2 = j2 == 0;
                     let (alpha1, alpha2) = (mhi.alpha_layer(i, j), mhi.alpha_layer(i, j2));
                     let (color1, color2) = (color_of(i * d + j), color_of(i * d + j2));
-                    if seen.0 < seen.1 {
-                        let (from, to) = (seen.0, seen.1 + rw + 2);
-                        for jn in j2.saturating_sub(2)..j2 {
-                            prefetch(mhi.alpha_layer(i, jn), from, to);
-                            if let LayerColor::PerLayer(_) = mhi.color() {
-                                prefetch(color_of(i * d + jn), 3 * from, 3 * to);
-                            }
-                        }
+                    for jn in j2.saturating_sub(2)..j2 {
+                        prefetch_layer(i, jn, seen);
                     }
                     seen = (usize::MAX, 0);
                     for row in &mut band_rows {
@@ -1085,15 +1109,8 @@ impl RowContext<'_> {
                             (a1.min(a2), b1.max(b2))
                         };
                         samples += 2 * tw;
-                        let (lo, hi) = idx[x0..x1]
-                            .iter()
-                            .chain(&idx2[x0..x1])
-                            .fold((u32::MAX, 0), |(lo, hi), &i| {
-                                (lo.min(i), hi.max(i.wrapping_add(1)))
-                            });
-                        if lo < hi {
-                            seen = (seen.0.min(lo as usize), seen.1.max(hi as usize));
-                        }
+                        widen_reads(&mut seen, &idx[x0..x1]);
+                        widen_reads(&mut seen, &idx2[x0..x1]);
                         let run = x0..x1;
                         let first = idx[run.clone()]
                             .iter()
@@ -1129,15 +1146,9 @@ impl RowContext<'_> {
                 let (h, far) = (hs[i * d + j].unwrap_or([0.0; 9]), j == 0);
                 let alpha = mhi.alpha_layer(i, j);
                 let color = color_of(i * d + j);
-                // While this layer is composited, the next one's texels around where the last
-                // layer read are fetched: a band reads a few short rows of each of N · D
-                // layers, too short for the hardware to see a stream in.
-                if j > 0 && seen.0 < seen.1 {
-                    let (from, to) = (seen.0, seen.1 + rw + 2);
-                    prefetch(mhi.alpha_layer(i, j - 1), from, to);
-                    if let LayerColor::PerLayer(_) = mhi.color() {
-                        prefetch(color_of(i * d + j - 1), 3 * from, 3 * to);
-                    }
+                // While this layer is composited, the next one's texels are fetched.
+                if j > 0 {
+                    prefetch_layer(i, j - 1, seen);
                 }
                 seen = (usize::MAX, 0);
                 for row in &mut band_rows {
@@ -1157,10 +1168,7 @@ impl RowContext<'_> {
                         // From the first open pixel of the run's first tile to the last of
                         // its last: pixels in between that stopped are passed over in pass 2.
                         let (x0, x1) = (row.open[k].0, row.open[k_end - 1].1);
-                        // Pass 1 (vectorisable): sample positions of the tile's row, split
-                        // into the top-left texel index and the bilinear fractions. Invalid
-                        // samples (w ≤ ε) are sent outside the image, where they read zero.
-                        // Over whole groups of eight pixels (the AVX2 width; the extra
+                        // Pass 1 over whole groups of eight pixels (the AVX2 width; the extra
                         // positions are never read): a run of a pruned render starts and ends
                         // anywhere, and the scalar head and tail cost more than the lanes.
                         let (p0, p1) = (x0 & !7, ((x1 + 7) & !7).min(tw));
@@ -1180,12 +1188,7 @@ impl RowContext<'_> {
                             (a, b)
                         };
                         // The texels the run reads: where to prefetch the next layer.
-                        let (lo, hi) = idx[x0..x1].iter().fold((u32::MAX, 0), |(lo, hi), &i| {
-                            (lo.min(i), hi.max(i.wrapping_add(1)))
-                        });
-                        if lo < hi {
-                            seen = (seen.0.min(lo as usize), seen.1.max(hi as usize));
-                        }
+                        widen_reads(&mut seen, &idx[x0..x1]);
                         // Pass 2: bilinear fetches and front-to-back compositing. Zipped slices
                         // and one window of alpha and of colour per sample, so that the loop
                         // checks two bounds a sample instead of a dozen.
@@ -1393,7 +1396,7 @@ fn sample_zero_padded<const FUSED: bool, const C: usize>(
     sx: f32,
     sy: f32,
 ) -> [f32; C] {
-    if !(sx > -1.0 && sy > -1.0 && sx < wd as f32 && sy < h as f32) {
+    if !touches_image(sx, sy, wd, h) {
         return [0.0; C];
     }
     // floor() without a libm call (the baseline x86-64 target has no SSE4.1 rounding): the
@@ -1639,7 +1642,7 @@ mod tests {
                                 } else {
                                     sample::<false>(alpha, color, rw, rh, sx, sy)
                                 };
-                                if !(sx > -1.0 && sy > -1.0 && sx < rw as f32 && sy < rh as f32) {
+                                if !touches_image(sx, sy, rw, rh) {
                                     outside += 1;
                                 }
                                 let a = if j == 0 { 1.0 } else { a };

@@ -660,12 +660,20 @@ enum Rows {
     Baseline,
 }
 
-fn render_rows_with(
-    mhi: &Mhi,
-    target: &Camera,
-    opts: &RenderOptions<'_>,
-    rows_kind: Rows,
-) -> Result<Rendered> {
+/// What a render composites: the blend weights (renormalised over the kept normals), the
+/// normals kept, each layer's homography and each tile's layers, the budget's shares, and the
+/// statistics known before any sample.
+struct RenderPlan {
+    weights: Vec<f32>,
+    active: Vec<bool>,
+    hs: Vec<Option<[f32; 9]>>,
+    tiles: Vec<TilePlan>,
+    share: f32,
+    eps: f32,
+    stats: RenderStats,
+}
+
+fn render_plan(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<RenderPlan> {
     let (n, d) = (mhi.n(), mhi.d());
     let (tw, th) = (target.width as usize, target.height as usize);
     let px = tw * th;
@@ -721,6 +729,35 @@ fn render_rows_with(
             .iter()
             .map(|t| t.mass + stop_at(t, eps, share))
             .fold(0.0_f32, f32::max);
+    Ok(RenderPlan {
+        weights,
+        active,
+        hs,
+        tiles,
+        share,
+        eps,
+        stats,
+    })
+}
+
+fn render_rows_with(
+    mhi: &Mhi,
+    target: &Camera,
+    opts: &RenderOptions<'_>,
+    rows_kind: Rows,
+) -> Result<Rendered> {
+    let (n, d) = (mhi.n(), mhi.d());
+    let (tw, th) = (target.width as usize, target.height as usize);
+    let px = tw * th;
+    let RenderPlan {
+        weights,
+        active,
+        hs,
+        tiles,
+        share,
+        eps,
+        mut stats,
+    } = render_plan(mhi, target, opts)?;
     let keep = opts.keep_multi_normal;
     // Each row: blended RGB (W·3) and, if kept, the N multi-normal rows (N·W·3).
     let ctx = RowContext {
@@ -1607,55 +1644,14 @@ mod tests {
                 let got = render_rows_with(&mhi, &target, &opts, rows).unwrap();
                 assert_eq!(got.stats.samples, 1.0);
                 let hs = layer_homographies(&mhi, &target);
-                let (rw, rh) = (37, 23);
                 let mut outside = 0;
                 for i in 0..n {
-                    let color = match mhi.color() {
-                        LayerColor::Shared(img) => img.as_raw(),
-                        LayerColor::PerLayer(_) => unreachable!(),
-                    };
                     for y in 0..19 {
                         for x in 0..41 {
-                            let (mut t, mut c) = (1.0_f32, [0.0_f32; 3]);
-                            for j in (0..d).rev() {
-                                let Some(h) = hs[i * d + j] else { continue };
-                                // Pass 1's arithmetic, then the general sampler.
-                                let (u, v) = (x as i32 as f32 + 0.5, y as f32 + 0.5);
-                                let (bx, by, bw) =
-                                    (h[1] * v + h[2], h[4] * v + h[5], h[7] * v + h[8]);
-                                let w = h[6] * u + bw;
-                                let ok = w > W_EPS;
-                                let inv = 1.0 / if ok { w } else { 1.0 };
-                                let sx = if ok {
-                                    (h[0] * u + bx) * inv - 0.5
-                                } else {
-                                    -2.0
-                                };
-                                let sy = if ok {
-                                    (h[3] * u + by) * inv - 0.5
-                                } else {
-                                    -2.0
-                                };
-                                let alpha = mhi.alpha_layer(i, j);
-                                let (a, col) = if fused {
-                                    sample::<true>(alpha, color, rw, rh, sx, sy)
-                                } else {
-                                    sample::<false>(alpha, color, rw, rh, sx, sy)
-                                };
-                                if !touches_image(sx, sy, rw, rh) {
-                                    outside += 1;
-                                }
-                                let a = if j == 0 { 1.0 } else { a };
-                                let ta = t * a;
-                                for (c, v) in c.iter_mut().zip(col) {
-                                    *c = if fused {
-                                        ta.mul_add(v, *c)
-                                    } else {
-                                        *c + ta * v
-                                    };
-                                }
-                                t -= ta;
-                            }
+                            let visible = (0..d).rev().filter(|j| hs[i * d + j].is_some());
+                            let (c, _, off) =
+                                composite_of(&mhi, &hs, (i, x, y), visible, 0.0, fused);
+                            outside += off;
                             let p = got.multi_normal[i].get_pixel(x, y).0;
                             assert_eq!(
                                 p.map(f32::to_bits),
@@ -1668,6 +1664,157 @@ mod tests {
                 // The poses do send many samples off the image.
                 assert!(outside > n * d * 41 * 19 / 10, "{outside} samples outside");
             }
+        }
+    }
+
+    /// Pixel `(x, y)` of normal `i`'s image composited front to back over `layers` (near to
+    /// far) the slow way: pass 1's arithmetic for the position, the general zero-padded
+    /// sampler, the far layer opaque, no sample once the transmittance is at or below `stop`
+    /// (0: never). Returns the colour, the samples composited and those wholly off the image.
+    fn composite_of(
+        mhi: &Mhi,
+        hs: &[Option<[f32; 9]>],
+        (i, x, y): (usize, u32, u32),
+        layers: impl Iterator<Item = usize>,
+        stop: f32,
+        fused: bool,
+    ) -> ([f32; 3], usize, usize) {
+        let (rw, rh) = (
+            mhi.reference().width as usize,
+            mhi.reference().height as usize,
+        );
+        let color = match mhi.color() {
+            LayerColor::Shared(img) => img.as_raw(),
+            LayerColor::PerLayer(_) => unreachable!(),
+        };
+        let (mut t, mut c, mut composited, mut outside) = (1.0_f32, [0.0_f32; 3], 0, 0);
+        for j in layers {
+            if stop > 0.0 && t <= stop {
+                continue;
+            }
+            let h = hs[i * mhi.d() + j].unwrap_or([0.0; 9]);
+            let (u, v) = (x as i32 as f32 + 0.5, y as f32 + 0.5);
+            let (bx, by, bw) = (h[1] * v + h[2], h[4] * v + h[5], h[7] * v + h[8]);
+            let w = h[6] * u + bw;
+            let ok = w > W_EPS;
+            let inv = 1.0 / if ok { w } else { 1.0 };
+            let sx = if ok {
+                (h[0] * u + bx) * inv - 0.5
+            } else {
+                -2.0
+            };
+            let sy = if ok {
+                (h[3] * u + by) * inv - 0.5
+            } else {
+                -2.0
+            };
+            let alpha = mhi.alpha_layer(i, j);
+            let (a, col) = if fused {
+                sample::<true>(alpha, color, rw, rh, sx, sy)
+            } else {
+                sample::<false>(alpha, color, rw, rh, sx, sy)
+            };
+            composited += 1;
+            if !touches_image(sx, sy, rw, rh) {
+                outside += 1;
+            }
+            let a = if j == 0 { 1.0 } else { a };
+            let ta = t * a;
+            for (c, v) in c.iter_mut().zip(col) {
+                *c = if fused {
+                    ta.mul_add(v, *c)
+                } else {
+                    *c + ta * v
+                };
+            }
+            t -= ta;
+        }
+        (c, composited, outside)
+    }
+
+    #[test]
+    fn a_pruned_render_is_its_plans_samples_composited_to_the_bit() {
+        // Layers faint in the reference's left half (the plan leaves them out of the tiles
+        // that see only that half, so those tiles keep every other layer) and alphas that
+        // stop most pixels before the far layer: every multi-normal image must be, bit for
+        // bit, each pixel's tile's layers composited through the general sampler up to its
+        // stop, whether the render takes them one or two at a time; every sample must count.
+        let k = Intrinsics::new(30.0, 30.0, 30.0, 12.0).unwrap();
+        let (rw, rh) = (61_u32, 23_u32);
+        let reference = Camera::new(k, RigidTransform::IDENTITY, rw, rh).unwrap();
+        let (n, d, px) = (2, 9, (rw * rh) as usize);
+        let value = |i: usize| ((i * 7919) % 1000) as f32 / 999.0;
+        let color = LayerColor::Shared(Rgb32FImage::from_fn(rw, rh, |x, y| {
+            let i = (y * rw + x) as usize * 3;
+            image::Rgb([value(i), value(i + 1), value(i + 2)])
+        }));
+        let alpha = (0..n * d * px)
+            .map(|l| {
+                let (j, x) = ((l / px) % d, (l % px) % rw as usize);
+                if j % 2 == 1 && x < 40 {
+                    0.0
+                } else {
+                    0.6 + 0.35 * value(l * 3 + 1)
+                }
+            })
+            .collect();
+        let mhi = Mhi::new(
+            mhi_geom::NormalSet::paper_subset(n).unwrap(),
+            depths_linear_in_disparity(1.0, 50.0, d).unwrap(),
+            reference,
+            color,
+            alpha,
+        )
+        .unwrap();
+        let rel = RigidTransform::new(
+            DMat3::from_axis_angle(DVec3::new(0.1, 1.0, 0.0).normalize(), 0.05),
+            DVec3::new(0.05, 0.02, 0.0),
+        )
+        .unwrap();
+        let target = Camera::new(k, rel.inverse(), 64, 19).unwrap();
+        let opts = RenderOptions {
+            keep_multi_normal: true,
+            prune: Prune::DEFAULT,
+            ..Default::default()
+        };
+        let plan = render_plan(&mhi, &target, &opts).unwrap();
+        let tiles_x = 64_usize.div_ceil(TILE_W);
+        // The plan has tiles that keep two neighbouring layers and tiles that skip some.
+        let lists = || plan.tiles.iter().flat_map(|t| &t.layers);
+        assert!(lists().any(|l| l.windows(2).any(|w| w[0] == w[1] + 1)));
+        assert!(lists().any(|l| l.len() < d));
+        #[cfg(target_arch = "x86_64")]
+        let fused = std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("fma");
+        #[cfg(not(target_arch = "x86_64"))]
+        let fused = false;
+        for (rows, fused) in [(Rows::Baseline, false), (Rows::Fastest, fused)] {
+            let got = render_rows_with(&mhi, &target, &opts, rows).unwrap();
+            let (mut composited, mut stopped) = (0, 0);
+            for i in 0..n {
+                for y in 0..19 {
+                    for x in 0..64 {
+                        let tile =
+                            &plan.tiles[(y as usize / TILE_H) * tiles_x + x as usize / TILE_W];
+                        let stop = stop_at(tile, plan.eps, plan.share);
+                        let layers = tile.layers[i].iter().copied();
+                        let (c, m, _) =
+                            composite_of(&mhi, &plan.hs, (i, x, y), layers, stop, fused);
+                        composited += m;
+                        stopped += usize::from(m < tile.layers[i].len());
+                        let p = got.multi_normal[i].get_pixel(x, y).0;
+                        assert_eq!(
+                            p.map(f32::to_bits),
+                            c.map(f32::to_bits),
+                            "{rows:?} normal {i} pixel ({x}, {y})"
+                        );
+                    }
+                }
+            }
+            let visible = 64 * 19 * plan.hs.iter().filter(|h| h.is_some()).count();
+            assert_eq!(got.stats.samples, composited as f32 / visible as f32);
+            // Most pixels stop before their tile's last layer.
+            assert!(stopped > n * 64 * 19 / 2, "{stopped} pixels stopped");
         }
     }
 

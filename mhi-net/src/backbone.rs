@@ -5,10 +5,9 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use burn::tensor::activation::relu;
-use burn::tensor::module::max_pool2d;
 
 use crate::fastconv::conv2d;
-use burn::tensor::ops::{ConvOptions, MaxPoolOptions};
+use burn::tensor::ops::ConvOptions;
 use burn::tensor::{Device, Tensor, TensorData};
 
 use crate::Error;
@@ -69,17 +68,9 @@ pub struct Backbone {
     lins: Vec<Tensor<4>>,
 }
 
+/// Max pooling over `k × k` windows at stride 2 (the project's kernel on the CPU backend).
 fn pool(x: Tensor<4>, k: usize) -> Tensor<4> {
-    max_pool2d(
-        x,
-        MaxPoolOptions {
-            kernel_size: [k, k],
-            stride: [2, 2],
-            padding: [(0, 0); 2],
-            dilation: [1, 1],
-            ceil_mode: false,
-        },
-    )
+    crate::fastconv::max_pool2d(x, k, 2)
 }
 
 impl Backbone {

@@ -10,10 +10,12 @@
 //! (plain or autodiff) it runs these kernels; on any other device, and for what the kernels do not
 //! cover (groups, f64, asymmetric padding), it is burn's `conv3d`. [`conv2d`] is the same kernel
 //! on one plane. [`channel_norm`] is layer normalisation over the channel axis without the two
-//! permutes burn's last-axis layer norm needs ([`norm`]).
+//! permutes burn's last-axis layer norm needs ([`norm`]); [`max_pool2d`] is max pooling without
+//! burn-flex's general 3D pooling and `i64` indices ([`pool`]).
 
 pub mod kernel;
 pub mod norm;
+pub mod pool;
 
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
@@ -30,7 +32,8 @@ use burn_flex::{Flex, FlexTensor};
 use kernel::ConvShape;
 use mhi_render::diff::gather::f32_contiguous as f32s;
 
-/// The convolution and its two gradients, and the layer norm over channels and its gradients, as
+/// The convolution and its two gradients, the layer norm over channels and its gradients, and max
+/// pooling and its gradient, as
 /// backend operations.
 #[backend_extension(Flex, Autodiff)]
 pub trait FastOps: Backend {
@@ -78,6 +81,55 @@ pub trait FastOps: Backend {
         grad: FloatTensor<Self>,
         eps: f64,
     ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>);
+
+    /// Max pooling of a `[B, C, H, W]` tensor over `k × k` windows at stride `s` (no padding,
+    /// no dilation, the output rounded down).
+    fn fast_max_pool2d(x: FloatTensor<Self>, k: usize, s: usize) -> FloatTensor<Self>;
+
+    /// [`FastOps::fast_max_pool2d`] and, per output, the index of its maximum in its `H × W`
+    /// plane (as floats).
+    fn fast_max_pool2d_argmax(
+        x: FloatTensor<Self>,
+        k: usize,
+        s: usize,
+    ) -> (FloatTensor<Self>, FloatTensor<Self>);
+
+    /// The gradient of [`FastOps::fast_max_pool2d`] with respect to its `[B, C, H, W]` input
+    /// (`shape`), from the maxima's indices and the output's gradient.
+    fn fast_max_pool2d_backward(
+        argmax: FloatTensor<Self>,
+        grad: FloatTensor<Self>,
+        shape: [usize; 4],
+        k: usize,
+        s: usize,
+    ) -> FloatTensor<Self>;
+}
+
+/// `max_pool2d` over `k × k` windows at stride `s` (no padding, no dilation, rounded down):
+/// [`pool`]'s kernels on the CPU backend, burn's pooling elsewhere. Same result and gradient as
+/// `burn::tensor::module::max_pool2d` with those options.
+pub fn max_pool2d(x: Tensor<4>, k: usize, s: usize) -> Tensor<4> {
+    let [_, _, h, w] = x.dims();
+    if !on_flex(&x) || x.dims().contains(&0) || pool::PoolShape::new(1, h, w, k, s).is_none() {
+        return burn::tensor::module::max_pool2d(
+            x,
+            burn::tensor::ops::MaxPoolOptions {
+                kernel_size: [k, k],
+                stride: [s, s],
+                padding: [(0, 0); 2],
+                dilation: [1, 1],
+                ceil_mode: false,
+            },
+        );
+    }
+    let out = <burn::backend::Dispatch as FastOps>::fast_max_pool2d(x.into_dispatch(), k, s);
+    Tensor::<4>::from_dispatch(out)
+}
+
+/// [`pool::PoolShape`] of a `[B, C, H, W]` tensor (the callers checked that a window fits).
+fn pool_shape(shape: &[usize], k: usize, s: usize) -> pool::PoolShape {
+    pool::PoolShape::new(shape[0] * shape[1], shape[2], shape[3], k, s)
+        .expect("max_pool2d checked that a window fits the map")
 }
 
 /// `conv3d(x, weight) + bias`, through [`FastOps`] on the CPU backend and burn's `conv3d`
@@ -383,6 +435,42 @@ impl FastOps for Flex {
             flex(gb, vec![s.channels]),
         )
     }
+
+    fn fast_max_pool2d(x: FlexTensor, k: usize, s: usize) -> FlexTensor {
+        let shape = x.shape().to_vec();
+        let p = pool_shape(&shape, k, s);
+        let x = f32s(x);
+        let (oh, ow) = p.output();
+        flex(
+            pool::forward(&p, x.storage()),
+            vec![shape[0], shape[1], oh, ow],
+        )
+    }
+
+    fn fast_max_pool2d_argmax(x: FlexTensor, k: usize, s: usize) -> (FlexTensor, FlexTensor) {
+        let shape = x.shape().to_vec();
+        let p = pool_shape(&shape, k, s);
+        let x = f32s(x);
+        let (oh, ow) = p.output();
+        let (y, arg) = pool::forward_argmax(&p, x.storage());
+        let out = vec![shape[0], shape[1], oh, ow];
+        (flex(y, out.clone()), flex(arg, out))
+    }
+
+    fn fast_max_pool2d_backward(
+        argmax: FlexTensor,
+        grad: FlexTensor,
+        shape: [usize; 4],
+        k: usize,
+        s: usize,
+    ) -> FlexTensor {
+        let p = pool_shape(&shape, k, s);
+        let (arg, gy) = (f32s(argmax), f32s(grad));
+        flex(
+            pool::backward(&p, arg.storage(), gy.storage()),
+            shape.to_vec(),
+        )
+    }
 }
 
 /// `[B, C, …]` as batch, channels and positions.
@@ -502,6 +590,71 @@ impl<B: Backend + FastOps, C: CheckpointStrategy> FastOps for Autodiff<B, C> {
         );
         let lift = <FloatTensor<Self>>::new;
         (lift(gx), lift(gg), lift(gb))
+    }
+
+    fn fast_max_pool2d(x: FloatTensor<Self>, k: usize, s: usize) -> FloatTensor<Self> {
+        match MaxPool.prepare::<C>([x.node()]).compute_bound().stateful() {
+            OpsKind::Tracked(prep) => {
+                let shape = x.shape().dims::<4>();
+                let (y, argmax) = B::fast_max_pool2d_argmax(x.into_primitive(), k, s);
+                prep.finish((argmax, shape, k, s), y)
+            }
+            OpsKind::UnTracked(prep) => prep.finish(B::fast_max_pool2d(x.into_primitive(), k, s)),
+        }
+    }
+
+    fn fast_max_pool2d_argmax(
+        x: FloatTensor<Self>,
+        k: usize,
+        s: usize,
+    ) -> (FloatTensor<Self>, FloatTensor<Self>) {
+        // Not tracked (the pooling's own node keeps the indices; this is its inner step).
+        let (y, arg) = B::fast_max_pool2d_argmax(x.into_primitive(), k, s);
+        let lift = <FloatTensor<Self>>::new;
+        (lift(y), lift(arg))
+    }
+
+    fn fast_max_pool2d_backward(
+        argmax: FloatTensor<Self>,
+        grad: FloatTensor<Self>,
+        shape: [usize; 4],
+        k: usize,
+        s: usize,
+    ) -> FloatTensor<Self> {
+        // Computed by the inner backend and not tracked (as the layer norm's gradients).
+        <FloatTensor<Self>>::new(B::fast_max_pool2d_backward(
+            argmax.into_primitive(),
+            grad.into_primitive(),
+            shape,
+            k,
+            s,
+        ))
+    }
+}
+
+/// The autodiff node of [`FastOps::fast_max_pool2d`].
+#[derive(Debug)]
+struct MaxPool;
+
+impl<B: Backend + FastOps> Backward<B, 1> for MaxPool {
+    /// The maxima's indices, the input's shape, the window and the stride.
+    type State = (B::FloatTensorPrimitive, [usize; 4], usize, usize);
+
+    fn backward(
+        self,
+        ops: Ops<Self::State, 1>,
+        grads: &mut Gradients,
+        _checkpointer: &mut Checkpointer,
+    ) {
+        let [node_x] = ops.parents;
+        let grad = grads.consume::<B>(&ops.node);
+        let (argmax, shape, k, s) = ops.state;
+        if let Some(node) = node_x {
+            grads.register::<B>(
+                node.id,
+                B::fast_max_pool2d_backward(argmax, grad, shape, k, s),
+            );
+        }
     }
 }
 
@@ -1090,6 +1243,61 @@ mod tests {
             );
             assert!(err < 1e-3, "weight gradient differs by {err}");
         }
+    }
+
+    #[test]
+    fn max_pool2d_and_its_gradient_match_burn() {
+        let dev = Device::flex().autodiff();
+        // VGG16's 2 × 2 and AlexNet's overlapping 3 × 3 windows at stride 2, on maps whose
+        // sides leave a remainder; values on a coarse grid with a third of them zero (as after a
+        // ReLU), so that windows hold ties and the gradient must go to the same one of them.
+        for (b, c, h, w, k) in [
+            (2, 3, 8, 8, 2),
+            (1, 4, 9, 7, 2),
+            (2, 2, 13, 10, 3),
+            (1, 1, 3, 3, 3),
+        ] {
+            let grid = Tensor::<4>::random([b, c, h, w], Distribution::Uniform(-2.0, 4.0), &dev)
+                .floor()
+                .clamp_min(0.0)
+                * 0.25;
+            let x = Tensor::<4>::from_data(grid.into_data(), &dev).require_grad();
+            let opts = burn::tensor::ops::MaxPoolOptions {
+                kernel_size: [k, k],
+                stride: [2, 2],
+                padding: [(0, 0); 2],
+                dilation: [1, 1],
+                ceil_mode: false,
+            };
+            let theirs = burn::tensor::module::max_pool2d(x.clone(), opts);
+            let ours = super::max_pool2d(x.clone(), k, 2);
+            assert_eq!(theirs.dims(), ours.dims());
+            assert_eq!(values(&ours), values(&theirs), "{b}×{c}×{h}×{w}, k {k}");
+            let weights =
+                Tensor::<4>::random(theirs.dims(), Distribution::Uniform(-1.0, 1.0), &dev);
+            let g1 = (theirs * weights.clone()).sum().backward();
+            let g2 = (ours * weights).sum().backward();
+            let (gt, go) = (values(&x.grad(&g1).unwrap()), values(&x.grad(&g2).unwrap()));
+            // Overlapping windows sum up to four gradients into one input, maybe in another
+            // order than burn's.
+            let err = max_diff(&go, &gt);
+            assert!(err < 1e-6, "gradient differs by {err}");
+            assert!(go.iter().filter(|g| **g != 0.0).count() > 0);
+        }
+        // On the plain device (inference: LPIPS), and where no window fits (burn's pooling
+        // then, as before).
+        let plain = Device::flex();
+        let x = Tensor::<4>::random([1, 2, 6, 5], Distribution::Uniform(0.0, 1.0), &plain);
+        let opts = burn::tensor::ops::MaxPoolOptions {
+            kernel_size: [2, 2],
+            stride: [2, 2],
+            padding: [(0, 0); 2],
+            dilation: [1, 1],
+            ceil_mode: false,
+        };
+        let theirs = burn::tensor::module::max_pool2d(x.clone(), opts);
+        assert_eq!(values(&super::max_pool2d(x, 2, 2)), values(&theirs));
+        assert!(super::pool::PoolShape::new(1, 2, 5, 3, 2).is_none());
     }
 
     #[test]

@@ -33,8 +33,7 @@ use kernel::ConvShape;
 use mhi_render::diff::gather::f32_contiguous as f32s;
 
 /// The convolution and its two gradients, the layer norm over channels and its gradients, and max
-/// pooling and its gradient, as
-/// backend operations.
+/// pooling and its gradient, as backend operations.
 #[backend_extension(Flex, Autodiff)]
 pub trait FastOps: Backend {
     /// `conv3d(x, weight)` without bias.

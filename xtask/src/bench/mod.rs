@@ -79,8 +79,8 @@ pub struct BenchArgs {
     /// Weights cache for --train-step's VGG loss (default: $MHI_CACHE, else ~/.cache/mhi).
     #[arg(long)]
     pub cache: Option<PathBuf>,
-    /// With --peer: rounds of this renderer then the peer, alternating, each the median of
-    /// --runs. The ratio reported is the median of the rounds' ratios, with a distribution-free
+    /// With --peer: rounds of this renderer (or, with --train-step, this training step) then
+    /// the peer, alternating, each the median of --runs. The ratio reported is the median of the rounds' ratios, with a distribution-free
     /// interval of that median from the rounds' order statistics (5 rounds: their range, which
     /// holds the median 94 % of the times; 3 rounds: 75 %): on a shared machine a swing of speed
     /// then falls on both sides of a round instead of on one.
@@ -428,11 +428,66 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
     }
     if a.train_step {
         let weights = crate::common::cache_dir(a.cache.as_deref()).join("weights");
-        let mut v = step::train_step(&a.data, &weights, a.runs)?;
-        if let Some(peer) = &a.peer {
+        let Some(peer) = &a.peer else {
+            let v = step::train_step(&a.data, &weights, a.runs)?;
+            if let Some(p) = &a.json {
+                mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
+            }
+            return Ok(());
+        };
+        if a.rounds == 0 {
+            bail!(
+                "--rounds 0: at least one round of this step and the peer's is needed for a ratio"
+            );
+        }
+        // Rounds of our step then the peer's, alternating (as the render's): a swing of the
+        // shared machine's speed falls on both sides of a round.
+        let mut rounds = Vec::with_capacity(a.rounds);
+        let mut v = serde_json::Value::Null;
+        for r in 0..a.rounds {
+            println!("\n== round {}/{} ==", r + 1, a.rounds);
+            v = step::train_step(&a.data, &weights, a.runs)?;
             let torch = step::peer_train_step(&a.python, peer, a.threads, a.runs, &v)?;
+            let ratio = |key: &str| torch["ratio_burn_over_torch"][key].as_f64();
+            rounds.push(serde_json::json!({
+                "step": ratio("step"),
+                "stage1_inference": ratio("stage1_inference"),
+            }));
             v["peer"] = torch;
         }
+        println!(
+            "\nburn / PyTorch over {} alternating rounds (median; distribution-free interval of the median):",
+            a.rounds
+        );
+        let mut summary = serde_json::Map::new();
+        for (key, label) in [
+            ("step", "phase-1 step (stage 1 + warp + loss, fwd+bwd)"),
+            ("stage1_inference", "stage 1 inference"),
+        ] {
+            let ratios: Vec<f64> = rounds
+                .iter()
+                .map(|r| r[key].as_f64().unwrap_or(f64::NAN))
+                .collect();
+            let (ci, coverage) = mhi_eval::stats::median_interval(&ratios, 0.95)
+                .context("the peer or this step gave a non-finite time")?;
+            let m = median(ratios.clone());
+            println!(
+                "  {label:<48} {m:.2}x ({:.0} % interval {:.2}–{:.2}x; rounds {})",
+                100.0 * coverage,
+                ci[0],
+                ci[1],
+                ratios
+                    .iter()
+                    .map(|r| format!("{r:.2}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+            summary.insert(
+                key.into(),
+                serde_json::json!({ "median": m, "interval": ci, "coverage": coverage, "rounds": ratios }),
+            );
+        }
+        v["ratio_rounds"] = serde_json::Value::Object(summary);
         if let Some(p) = &a.json {
             mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
         }

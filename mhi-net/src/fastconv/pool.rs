@@ -4,8 +4,8 @@
 //! burn-flex pools through its 3D pooling with an `i64` index per output and a closure per
 //! window; on VGG16's shapes its forward took 8 ms for five 64-channel 64 × 64 maps, 16 % of
 //! the perceptual loss's forward (`docs/SPEED.md`). Here a forward that autodiff will need to
-//! differentiate also keeps, per output, where in its window the maximum was (one small float),
-//! and the backward adds each output's gradient there. The window's maximum is burn's (and
+//! differentiate also keeps, per output, the position of its maximum in its plane (one float,
+//! exact up to 2²⁴ positions), and the backward adds each output's gradient there. The window's maximum is burn's (and
 //! PyTorch's): the first largest value in row-major order, a NaN winning over any number (the
 //! last NaN in the window), so the gradient goes where burn's goes.
 

@@ -80,10 +80,11 @@ pub struct BenchArgs {
     #[arg(long)]
     pub cache: Option<PathBuf>,
     /// With --peer: rounds of this renderer (or, with --train-step, this training step) then
-    /// the peer, alternating, each the median of --runs. The ratio reported is the median of the rounds' ratios, with a distribution-free
-    /// interval of that median from the rounds' order statistics (5 rounds: their range, which
-    /// holds the median 94 % of the times; 3 rounds: 75 %): on a shared machine a swing of speed
-    /// then falls on both sides of a round instead of on one.
+    /// the peer, alternating, each the median of --runs. The ratio reported is the median of the
+    /// rounds' ratios, with a distribution-free interval of that median from the rounds' order
+    /// statistics (5 rounds: their range, which holds the median 94 % of the times; 3 rounds:
+    /// 75 %): on a shared machine a swing of speed then falls on both sides of a round instead
+    /// of on one.
     #[arg(long, default_value_t = 5)]
     pub rounds: usize,
     /// Also write {"render_ms", "torch_ms", "ratio", ...} to this JSON file.
@@ -448,11 +449,12 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
             println!("\n== round {}/{} ==", r + 1, a.rounds);
             v = step::train_step(&a.data, &weights, a.runs)?;
             let torch = step::peer_train_step(&a.python, peer, a.threads, a.runs, &v)?;
-            let ratio = |key: &str| torch["ratio_burn_over_torch"][key].as_f64();
-            rounds.push(serde_json::json!({
-                "step": ratio("step"),
-                "stage1_inference": ratio("stage1_inference"),
-            }));
+            let ratio = |key: &str| {
+                torch["ratio_burn_over_torch"][key]
+                    .as_f64()
+                    .unwrap_or(f64::NAN)
+            };
+            rounds.push([ratio("step"), ratio("stage1_inference")]);
             v["peer"] = torch;
         }
         println!(
@@ -460,14 +462,14 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
             a.rounds
         );
         let mut summary = serde_json::Map::new();
-        for (key, label) in [
+        for (part, (key, label)) in [
             ("step", "phase-1 step (stage 1 + warp + loss, fwd+bwd)"),
             ("stage1_inference", "stage 1 inference"),
-        ] {
-            let ratios: Vec<f64> = rounds
-                .iter()
-                .map(|r| r[key].as_f64().unwrap_or(f64::NAN))
-                .collect();
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let ratios: Vec<f64> = rounds.iter().map(|r| r[part]).collect();
             let (ci, coverage) = mhi_eval::stats::median_interval(&ratios, 0.95)
                 .context("the peer or this step gave a non-finite time")?;
             let m = median(ratios.clone());

@@ -199,6 +199,7 @@ impl TrainConfig {
                         m.entry("norm_groups").or_insert(serde_json::json!(0));
                         m.entry("prototype_layout")
                             .or_insert(serde_json::json!(false));
+                        m.entry("colour_head").or_insert(serde_json::json!(false));
                     }
                 }
             }
@@ -295,6 +296,12 @@ impl TrainConfig {
                 unet.levels,
                 1 << unet.levels
             )));
+        }
+        if unet.colour_head && self.prior != Prior::Sweep {
+            return Err(Error::Config(
+                "stage1.unet.colour_head needs the sweep prior (a residual head that starts at zero)"
+                    .into(),
+            ));
         }
         if self.prior_window_radius == Some(0) {
             return Err(Error::Config(

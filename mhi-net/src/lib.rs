@@ -69,7 +69,8 @@ pub use view::{
     render_image, render_view,
 };
 pub use volume::{
-    LOGIT_INPUT_SCALE, PRIOR_EPS, Prior, Stage1Input, SweepPrior, cost_volume, stage1_input,
+    LOGIT_INPUT_SCALE, PRIOR_EPS, Prior, SourceColour, Stage1Input, SweepPrior, cost_volume,
+    stage1_input, stage1_input_with,
 };
 
 /// Why building, training or resuming a model failed.

@@ -15,7 +15,7 @@ use crate::config::TrainConfig;
 use crate::nets::{BlendNet, Stage1};
 use crate::run::RunDir;
 use crate::train::{alphas_of, load_networks};
-use crate::volume::{Stage1Input, stage1_input};
+use crate::volume::{Stage1Input, stage1_input_with};
 
 /// A trained model (the networks of a run's latest checkpoint) on a non-autodiff device.
 pub struct Model {
@@ -125,7 +125,7 @@ impl Model {
         source: &LoadedFrame,
     ) -> crate::Result<Stage1Input> {
         let (w, h) = (reference.image.width(), reference.image.height());
-        stage1_input(
+        stage1_input_with(
             &self.normals,
             &self.depths,
             reference,
@@ -135,25 +135,50 @@ impl Model {
                 .as_ref()
                 .map(|c| (c, self.config.prior_eps())),
             self.stage1_scale(w as usize, h as usize),
+            self.config.stage1.unet.colour_head,
             &self.device,
         )
     }
 
     /// Stage 1: alphas `N · D · H · W` (normal-major, far first) from its input.
     pub fn alphas(&self, input: Stage1Input) -> crate::Result<Vec<f32>> {
+        Ok(self.layers(input)?.0)
+    }
+
+    /// Stage 1: alphas `N · D · H · W` (normal-major, far first) and the layers' colour: the
+    /// reference's for every layer, or with a colour head each layer's own (one picture per
+    /// layer, normal-major, far first).
+    pub fn layers(
+        &self,
+        input: Stage1Input,
+    ) -> crate::Result<(Vec<f32>, Option<Vec<Rgb32FImage>>)> {
         let data = |t: burn::tensor::TensorData| -> crate::Result<Vec<f32>> {
             t.try_to_vec()
                 .map_err(|e| Error::NonFinite(format!("stage-1 output: {e:?}")))
         };
+        let mut colours = None;
         let v: Vec<f32> = match &input.prior {
             // With the sweep prior, the networks' coarse residual is upsampled and applied to
-            // the prior in one pass on the CPU (the same alphas as `alphas_of` to rounding).
+            // the prior in one pass on the CPU (the same alphas as `alphas_of` to rounding),
+            // and so is a colour head's mix.
             Some(prior) => {
-                let [_, _, _, hs, ws] = input.volume.dims();
-                let small = data(self.stage1.forward_full(input.volume).into_data())?;
+                let [n, _, d, hs, ws] = input.volume.dims();
+                let out = self.stage1.forward_full(input.volume);
+                let c = out.dims()[1];
+                if let (Some(sc), 2) = (&input.colour, c) {
+                    let m = data(out.clone().narrow(1, 1, 1).into_data())?;
+                    if let Some(k) = mhi_render::first_failing(&m, f32::is_finite) {
+                        return Err(Error::NonFinite(format!(
+                            "stage 1 produced {} at colour logit {k}",
+                            m[k]
+                        )));
+                    }
+                    colours = Some(sc.apply_upsampled(&m, (hs, ws)));
+                }
+                let small = data(out.narrow(1, 0, 1).reshape([n * d * hs * ws]).into_data())?;
                 prior.apply_upsampled(&small, (hs, ws))
             }
-            None => data(alphas_of(&self.stage1, input).into_data())?,
+            None => data(alphas_of(&self.stage1, input).alpha.into_data())?,
         };
         use rayon::prelude::*;
         if let Some(k) = mhi_render::first_failing(&v, f32::is_finite) {
@@ -164,16 +189,32 @@ impl Model {
         }
         let mut v = v;
         v.par_iter_mut().for_each(|a| *a = a.clamp(0.0, 1.0));
-        Ok(v)
+        Ok((v, colours))
     }
 
-    /// The MHI of the reference view with the given alphas.
+    /// The MHI of the reference view with the given alphas, every layer in the reference's
+    /// colour.
     pub fn mhi(&self, reference: &LoadedFrame, alphas: Vec<f32>) -> crate::Result<Mhi> {
+        self.mhi_with(reference, alphas, None)
+    }
+
+    /// The MHI of the reference view with the given alphas and layer colours (the reference's
+    /// for every layer when `None`), as [`Self::layers`] gives them.
+    pub fn mhi_with(
+        &self,
+        reference: &LoadedFrame,
+        alphas: Vec<f32>,
+        colours: Option<Vec<Rgb32FImage>>,
+    ) -> crate::Result<Mhi> {
+        let color = match colours {
+            Some(v) => LayerColor::PerLayer(v),
+            None => LayerColor::Shared(reference.image.clone()),
+        };
         Mhi::new(
             self.normals.clone(),
             self.depths.clone(),
             reference.camera,
-            LayerColor::Shared(reference.image.clone()),
+            color,
             alphas,
         )
         .map_err(Error::from)

@@ -54,6 +54,12 @@ pub struct UNet3dConfig {
     /// Off: one convolution per level, transposed-convolution upsampling, 1 × 1 × 1 head.
     #[config(default = false)]
     pub prototype_layout: bool,
+    /// A second output channel per plane (residual heads only, zero-initialised like the
+    /// first): the logit of how far each plane's colour moves from the reference's towards
+    /// the source's warped onto that plane (see [`crate::SourceColour`]). Off: every plane
+    /// takes the reference's colour.
+    #[config(default = false)]
+    pub colour_head: bool,
 }
 
 /// A 3 × k × k convolution of `[B, C, D, H, W]` with zero padding 1 on the plane axis, and
@@ -229,6 +235,12 @@ pub fn upsample2_linear(x: Tensor<5>, axis: usize) -> Tensor<5> {
 }
 
 impl UNet3dConfig {
+    /// Output channels per plane: the alpha (or its logit's residual), and with
+    /// [`Self::colour_head`] the colour mix's logit.
+    pub fn out_channels(&self) -> usize {
+        1 + usize::from(self.colour_head)
+    }
+
     /// Build the network.
     pub fn init(&self, device: &Device) -> UNet3d {
         let w = self.width;
@@ -270,11 +282,11 @@ impl UNet3dConfig {
             head: zeroed_if(
                 self.residual,
                 if proto {
-                    Conv3dConfig::new([w, 1], [3, 3, 3])
+                    Conv3dConfig::new([w, self.out_channels()], [3, 3, 3])
                         .with_padding(PaddingConfig3d::Explicit(1, 1, 1))
                         .init(device)
                 } else {
-                    Conv3dConfig::new([w, 1], [1, 1, 1]).init(device)
+                    Conv3dConfig::new([w, self.out_channels()], [1, 1, 1]).init(device)
                 },
             ),
             residual: self.residual,
@@ -303,11 +315,12 @@ fn zeroed_if<M: Module>(zero: bool, m: M) -> M {
 }
 
 impl UNet3d {
-    /// Alphas of every plane, or with a residual head the raw correction of their logits.
+    /// Alphas of every plane, or with a residual head the raw correction of their logits
+    /// (and, with a colour head, each plane's colour-mix logit as a second channel).
     ///
     /// # Shapes
-    /// `[B, C, D, H, W]` → `[B, 1, D, H, W]`, in `[0, 1]` unless residual (H and W divisible
-    /// by `2^levels`, and D too with `halve_planes`)
+    /// `[B, C, D, H, W]` → `[B, 1 or 2, D, H, W]`, in `[0, 1]` unless residual (H and W
+    /// divisible by `2^levels`, and D too with `halve_planes`)
     pub fn forward(&self, x: Tensor<5>) -> Tensor<5> {
         let mut again = self.again.iter();
         let mut twice = |x: Tensor<5>| match again.next() {
@@ -385,16 +398,24 @@ impl Stage1 {
     pub fn with_head_bias(mut self, bias: f32) -> Self {
         for net in &mut self.nets {
             if let Some(b) = net.head.bias.take() {
-                b_replace(&mut net.head.bias, b, bias);
+                let t = b.val();
+                let c = t.dims()[0];
+                // The alpha channel only; a colour head's second channel keeps its bias.
+                let mut parts = vec![t.clone().narrow(0, 0, 1).ones_like() * bias];
+                if c > 1 {
+                    parts.push(t.narrow(0, 1, c - 1));
+                }
+                net.head.bias = Some(burn::module::Param::from_tensor(Tensor::cat(parts, 0)));
             }
         }
         self
     }
 
-    /// Alphas (or residuals) of all normals, at the volume's resolution.
+    /// Alphas (or residuals, and colour-mix logits with a colour head) of all normals, at the
+    /// volume's resolution.
     ///
     /// # Shapes
-    /// `[N, C, D, H, W]` (one oriented cost volume per normal) → `[N, 1, D, H, W]`
+    /// `[N, C, D, H, W]` (one oriented cost volume per normal) → `[N, 1 or 2, D, H, W]`
     pub fn forward(&self, volume: Tensor<5>) -> Tensor<5> {
         if self.scale <= 1 {
             return self.forward_full(volume);
@@ -421,7 +442,7 @@ impl Stage1 {
     /// (e.g. [`crate::Stage1Input`]), brought back to `(height, width)` bilinearly.
     ///
     /// # Shapes
-    /// `[N, C, D, h, w]` → `[N, 1, D, height, width]`
+    /// `[N, C, D, h, w]` → `[N, 1 or 2, D, height, width]`
     pub fn forward_blocks(&self, small: Tensor<5>, (h, w): (usize, usize)) -> Tensor<5> {
         use burn::tensor::module::interpolate;
         use burn::tensor::ops::{InterpolateMode, InterpolateOptions};
@@ -430,13 +451,43 @@ impl Stage1 {
         if (hs, ws) == (h, w) {
             return out;
         }
+        let c = out.dims()[1];
         let mut opts = InterpolateOptions::new(InterpolateMode::Bilinear);
         opts.output_size = Some([h, w]);
-        interpolate(out.reshape([n, d, hs, ws]), opts).reshape([n, 1, d, h, w])
+        interpolate(out.reshape([n, c * d, hs, ws]), opts).reshape([n, c, d, h, w])
+    }
+
+    /// Whether the networks have a colour head (two output channels per plane).
+    pub fn colour_head(&self) -> bool {
+        self.nets
+            .first()
+            .is_some_and(|net| net.head.weight.dims()[0] == 2)
+    }
+
+    /// Set the bias of the colour head (a test hook: a large bias moves every plane's colour
+    /// to the source's where the source sees it). No effect without a colour head.
+    pub fn with_colour_bias(mut self, bias: f32) -> Self {
+        for net in &mut self.nets {
+            if net.head.weight.dims()[0] != 2 {
+                continue;
+            }
+            if let Some(b) = net.head.bias.take() {
+                let t = b.val();
+                let v = Tensor::cat(
+                    vec![
+                        t.clone().narrow(0, 0, 1),
+                        t.narrow(0, 1, 1).ones_like() * bias,
+                    ],
+                    0,
+                );
+                net.head.bias = Some(burn::module::Param::from_tensor(v));
+            }
+        }
+        self
     }
 
     /// The networks on the volume as it is (no interpolation): `[N, C, D, h, w]` →
-    /// `[N, 1, D, h, w]`.
+    /// `[N, 1 or 2, D, h, w]`.
     pub(crate) fn forward_full(&self, volume: Tensor<5>) -> Tensor<5> {
         if self.nets.len() == 1 {
             return self.nets[0].forward(volume);
@@ -449,15 +500,6 @@ impl Stage1 {
             .collect();
         Tensor::cat(parts, 0)
     }
-}
-
-fn b_replace(
-    slot: &mut Option<burn::module::Param<Tensor<1>>>,
-    old: burn::module::Param<Tensor<1>>,
-    value: f32,
-) {
-    let t = old.val();
-    *slot = Some(burn::module::Param::from_tensor(t.ones_like() * value));
 }
 
 /// Smallest heuristic weight whose logarithm a residual blending network corrects (weights

@@ -22,7 +22,7 @@ use crate::config::TrainConfig;
 use crate::loss::{LossKind, TrainLoss};
 use crate::nets::{BlendNet, Stage1};
 use crate::run::{Latest, RunDir};
-use crate::volume::{Stage1Input, stage1_input};
+use crate::volume::{Stage1Input, stage1_input_with};
 
 /// Wall-clock split of one training step, in milliseconds.
 #[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
@@ -404,7 +404,7 @@ impl Trainer {
             ..StepTimes::default()
         };
         let t1 = Instant::now();
-        let alpha = if phase == 1 {
+        let layers = if phase == 1 {
             alphas_of(&self.stage1, input)
         } else {
             self.frozen_alphas_of(input).autodiff()
@@ -420,7 +420,8 @@ impl Trainer {
             target,
             ..
         } = &inputs;
-        let (_, mni) = render_shared(alpha, color.clone(), geom, soft.clone());
+        let color = layers.colour_or(color);
+        let (_, mni) = render_shared(layers.alpha, color, geom, soft.clone());
         let output = if phase == 1 {
             mni
         } else {
@@ -473,11 +474,11 @@ impl Trainer {
         self.device.clone().without_autodiff()
     }
 
-    /// Stage 1's alphas from a cost volume on the plain device, recording no graph.
+    /// Stage 1's layers from a cost volume on the plain device, recording no graph.
     ///
     /// # Shapes
-    /// `[N, 6, D, H, W]` → `[N·D, 1, H, W]`
-    fn frozen_alphas_of(&self, input: Stage1Input) -> Tensor<4> {
+    /// `[N, C, D, H, W]` → `[N·D, 1, H, W]` (and `[N·D, 3, H, W]` with a colour head)
+    fn frozen_alphas_of(&self, input: Stage1Input) -> Layers {
         alphas_of(&self.stage1.valid(), input)
     }
 
@@ -514,7 +515,7 @@ impl Trainer {
 
     fn stage1_input_on(&self, s: &Sample, device: &Device) -> crate::Result<Stage1Input> {
         let (w, h) = (s.reference.image.width(), s.reference.image.height());
-        stage1_input(
+        stage1_input_with(
             &self.normals,
             &self.depths,
             &s.reference,
@@ -524,6 +525,7 @@ impl Trainer {
                 .as_ref()
                 .map(|c| (c, self.config.prior_eps())),
             self.config.stage1.scale,
+            self.config.stage1.unet.colour_head,
             device,
         )
     }
@@ -636,11 +638,11 @@ impl Trainer {
         let n = self.normals.len();
         let (w, h) = (self.config.width as usize, self.config.height as usize);
         let plain = self.plain();
-        let alpha = self.frozen_alphas_of(self.stage1_input_on(&s, &plain)?);
+        let layers = self.frozen_alphas_of(self.stage1_input_on(&s, &plain)?);
         let inputs = self.render_inputs(&s, &plain)?;
         let (_, mni) = render_shared(
-            alpha,
-            inputs.color.clone(),
+            layers.alpha.clone(),
+            layers.colour_or(&inputs.color),
             &inputs.geom,
             inputs.soft.clone(),
         );
@@ -661,11 +663,11 @@ impl Trainer {
         let blend = self.blend.valid();
         for k in 0..count {
             let s = self.validation_sample(k)?;
-            let alpha = self.frozen_alphas_of(self.stage1_input_on(&s, &plain)?);
+            let layers = self.frozen_alphas_of(self.stage1_input_on(&s, &plain)?);
             let inputs = self.render_inputs(&s, &plain)?;
             let (soft_img, mni) = render_shared(
-                alpha,
-                inputs.color.clone(),
+                layers.alpha.clone(),
+                layers.colour_or(&inputs.color),
                 &inputs.geom,
                 inputs.soft.clone(),
             );
@@ -704,19 +706,47 @@ impl Trainer {
 }
 
 /// Stage 1's alphas, one layer per normal and plane: its output, or with the sweep prior the
-/// prior's logits corrected by its output.
+/// prior's logits corrected by its output. A colour head's second channel gives each layer its
+/// own colour ([`crate::SourceColour`]); without one the layers share the reference's (`None`).
 ///
 /// # Shapes
-/// `volume [N, C, D, H, W]` → `[N·D, 1, H, W]`
-pub(crate) fn alphas_of(stage1: &Stage1, input: Stage1Input) -> Tensor<4> {
+/// `volume [N, C, D, H, W]` → `([N·D, 1, H, W], Some([N·D, 3, H, W]) or None)`
+pub(crate) fn alphas_of(stage1: &Stage1, input: Stage1Input) -> Layers {
     let [n, _, d, _, _] = input.volume.dims();
     let (h, w) = input.size;
-    let out = stage1
-        .forward_blocks(input.volume, input.size)
-        .reshape([n * d, 1, h, w]);
-    match input.prior {
-        Some(p) => p.apply(out),
-        None => out,
+    let out = stage1.forward_blocks(input.volume, input.size);
+    let c = out.dims()[1];
+    let alpha = out.clone().narrow(1, 0, 1).reshape([n * d, 1, h, w]);
+    let alpha = match input.prior {
+        Some(p) => p.apply(alpha),
+        None => alpha,
+    };
+    let colour = match (input.colour, c) {
+        (Some(sc), 2) => Some(sc.apply(out.narrow(1, 1, 1).reshape([n * d, 1, h, w]))),
+        _ => None,
+    };
+    Layers { alpha, colour }
+}
+
+/// Stage 1's layers: alphas `[N·D, 1, H, W]` and, with a colour head, their colours
+/// `[N·D, 3, H, W]`.
+pub(crate) struct Layers {
+    pub(crate) alpha: Tensor<4>,
+    pub(crate) colour: Option<Tensor<4>>,
+}
+
+impl Layers {
+    /// The colour to render with: the layers' own, else the shared `reference` `[1, 3, H, W]`.
+    fn colour_or(&self, reference: &Tensor<4>) -> Tensor<4> {
+        self.colour.clone().unwrap_or_else(|| reference.clone())
+    }
+
+    /// The same tensors on the autodiff device (constants there).
+    fn autodiff(self) -> Self {
+        Self {
+            alpha: self.alpha.autodiff(),
+            colour: self.colour.map(|t| t.autodiff()),
+        }
     }
 }
 

@@ -108,8 +108,8 @@ impl<'a> ViewSynthesis<'a> {
                 let input = m.stage1_input(reference, source)?;
                 let volume_ms = ms(t0);
                 let t1 = Instant::now();
-                let alphas = m.alphas(input)?;
-                let mhi = m.mhi(reference, alphas)?;
+                let (alphas, colours) = m.layers(input)?;
+                let mhi = m.mhi_with(reference, alphas, colours)?;
                 return Ok((
                     mhi,
                     MhiTimes {

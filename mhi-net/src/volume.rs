@@ -79,46 +79,18 @@ impl SweepPrior {
     /// # Panics
     /// If `small` does not hold `N·D · hs · ws` values or a side is zero.
     pub fn apply_upsampled(&self, small: &[f32], (hs, ws): (usize, usize)) -> Vec<f32> {
-        use rayon::prelude::*;
         let (planes, h, w) = self.shape;
         assert!(hs > 0 && ws > 0 && small.len() == planes * hs * ws);
-        // Per output row and column: the two taps and the weight of the second, as burn's
-        // `interpolate_bilinear_impl` computes them (in f64, the weight then in f32).
-        let axis = |n_in: usize, n_out: usize| -> Vec<(usize, usize, f32)> {
-            let ratio = (n_in as f64 - 1.0) / (n_out.max(1) - 1).max(1) as f64;
-            (0..n_out)
-                .map(|o| {
-                    let c = o as f64 * ratio;
-                    let lo = c.floor().max(0.0) as usize;
-                    (lo, (lo + 1).min(n_in - 1), (c - lo as f64).max(0.0) as f32)
-                })
-                .collect()
-        };
-        let (rows, cols) = (axis(hs, h), axis(ws, w));
-        let mut out = vec![0.0_f32; planes * h * w];
-        out.par_chunks_mut(w.max(1))
-            .enumerate()
-            .for_each(|(k, dst)| {
-                let (plane, y) = (k / h, k % h);
-                let src = &small[plane * hs * ws..(plane + 1) * hs * ws];
-                let (y0, y1, wy) = rows[y];
-                let (top, bottom) = (&src[y0 * ws..(y0 + 1) * ws], &src[y1 * ws..(y1 + 1) * ws]);
-                // The residual of the row (its taps looked up per column), then the sigmoid
-                // pass, which has no lookups and vectorises.
-                for (o, &(x0, x1, wx)) in dst.iter_mut().zip(&cols) {
-                    *o = top[x0] * (1.0 - wx) * (1.0 - wy)
-                        + top[x1] * wx * (1.0 - wy)
-                        + bottom[x0] * (1.0 - wx) * wy
-                        + bottom[x1] * wx * wy;
-                }
-                let at = k * w;
-                let (logit, correction) = (&self.logit[at..at + w], &self.correction[at..at + w]);
-                for ((o, l), c) in dst.iter_mut().zip(logit).zip(correction) {
-                    let a = 1.0 / (1.0 + exp_approx(-(l + *o)));
-                    *o = (a + c).clamp(0.0, 1.0);
-                }
-            });
-        out
+        // The residual of each row (its taps looked up per column), then the sigmoid pass,
+        // which has no lookups and vectorises.
+        upsample_rows(small, planes, (hs, ws), (h, w), |k, dst| {
+            let at = k * w;
+            let (logit, correction) = (&self.logit[at..at + w], &self.correction[at..at + w]);
+            for ((o, l), c) in dst.iter_mut().zip(logit).zip(correction) {
+                let a = 1.0 / (1.0 + exp_approx(-(l + *o)));
+                *o = (a + c).clamp(0.0, 1.0);
+            }
+        })
     }
 }
 
@@ -159,6 +131,8 @@ pub struct Stage1Input {
     pub volume: Tensor<5>,
     /// The sweep prior, when the model has one, at full resolution.
     pub prior: Option<SweepPrior>,
+    /// What a colour head mixes each plane's colour from, when the model has one.
+    pub colour: Option<SourceColour>,
     /// Side of the pixel blocks the volume is averaged over (1: full resolution).
     pub block: usize,
     /// The full-resolution `(height, width)` stage 1's output is brought back to.
@@ -191,6 +165,27 @@ pub fn stage1_input(
     source: &LoadedFrame,
     prior: Option<(&SweepConfig, f32)>,
     block: usize,
+    device: &Device,
+) -> crate::Result<Stage1Input> {
+    stage1_input_with(
+        normals, depths, reference, source, prior, block, false, device,
+    )
+}
+
+/// [`stage1_input`], and with `colour` what a colour head mixes each plane's colour from
+/// ([`Stage1Input::colour`]).
+///
+/// # Errors
+/// As [`stage1_input`].
+#[allow(clippy::too_many_arguments)]
+pub fn stage1_input_with(
+    normals: &NormalSet,
+    depths: &[f64],
+    reference: &LoadedFrame,
+    source: &LoadedFrame,
+    prior: Option<(&SweepConfig, f32)>,
+    block: usize,
+    colour: bool,
     device: &Device,
 ) -> crate::Result<Stage1Input> {
     let block = block.max(1);
@@ -253,12 +248,174 @@ pub fn stage1_input(
             shape: (n * d, h, w),
         }
     });
+    let colour = colour.then(|| SourceColour::new(&psv, &reference.image));
     Ok(Stage1Input {
         volume,
         prior,
+        colour,
         block,
         size: (h, w),
     })
+}
+
+/// What a colour head mixes each plane's colour from: the reference image and, per plane, the
+/// source warped onto it minus the reference where the source sees the plane (zero where it
+/// does not). Plane `l`'s colour is `clamp(ref + tanh(m_l) · (src_l − ref)·valid_l, 0, 1)` for
+/// the head's logit `m_l`: the reference's at `m = 0` (an untrained head changes nothing), the
+/// source's as `m → ∞` where the source sees the plane, the reference's always where it does
+/// not. Kept on the CPU at full resolution.
+#[derive(Debug, Clone)]
+pub struct SourceColour {
+    /// The reference, planar `[3, H, W]`.
+    pub reference: Vec<f32>,
+    /// `(src_l − ref) · valid_l`, planar `[N·D, 3, H, W]`.
+    pub delta: Vec<f32>,
+    /// `(N·D, H, W)`.
+    pub shape: (usize, usize, usize),
+}
+
+impl SourceColour {
+    /// From a plane-sweep volume of the source and the reference image on the same grid.
+    ///
+    /// # Panics
+    /// If the image is not the volume's size.
+    pub fn new(psv: &PlaneSweepVolume, reference: &image::Rgb32FImage) -> Self {
+        use rayon::prelude::*;
+        let (w, h) = (psv.width as usize, psv.height as usize);
+        assert_eq!(
+            (reference.width() as usize, reference.height() as usize),
+            (w, h)
+        );
+        let px = w * h;
+        let raw = reference.as_raw();
+        let mut planar = vec![0.0_f32; 3 * px];
+        for p in 0..px {
+            for c in 0..3 {
+                planar[c * px + p] = raw[3 * p + c];
+            }
+        }
+        let (n, d) = (psv.n, psv.d);
+        let mut delta = vec![0.0_f32; n * d * 3 * px];
+        delta
+            .par_chunks_mut(px.max(1))
+            .enumerate()
+            .for_each(|(k, dst)| {
+                let (l, c) = (k / 3, k % 3);
+                let (rgb, valid) = (psv.plane_rgb(l / d, l % d), psv.plane_valid(l / d, l % d));
+                let r = &planar[c * px..][..px];
+                for (p, o) in dst.iter_mut().enumerate() {
+                    *o = if valid[p] > 0.0 {
+                        rgb[3 * p + c] - r[p]
+                    } else {
+                        0.0
+                    };
+                }
+            });
+        Self {
+            reference: planar,
+            delta,
+            shape: (n * d, h, w),
+        }
+    }
+
+    /// Every plane's colour for the head's logits `m` (differentiable in `m`).
+    ///
+    /// # Shapes
+    /// `m [N·D, 1, H, W]` → `[N·D, 3, H, W]`
+    pub fn apply(&self, m: Tensor<4>) -> Tensor<4> {
+        let (planes, h, w) = self.shape;
+        let device = m.device();
+        let reference = Tensor::<4>::from_data(
+            TensorData::new(self.reference.clone(), [1, 3, h, w]),
+            &device,
+        )
+        .expand([planes, 3, h, w]);
+        let delta = Tensor::<4>::from_data(
+            TensorData::new(self.delta.clone(), [planes, 3, h, w]),
+            &device,
+        );
+        (reference + burn::tensor::activation::tanh(m).expand([planes, 3, h, w]) * delta)
+            .clamp(0.0, 1.0)
+    }
+
+    /// What [`Self::apply`] gives for the logits `small` (`N·D` planes of `hs × ws`) brought
+    /// to the full grid bilinearly as [`crate::Stage1::forward_blocks`] does (corners
+    /// aligned), as one picture per plane, on the CPU.
+    ///
+    /// # Panics
+    /// If `small` does not hold `N·D · hs · ws` values or a side is zero.
+    pub fn apply_upsampled(
+        &self,
+        small: &[f32],
+        (hs, ws): (usize, usize),
+    ) -> Vec<image::Rgb32FImage> {
+        use rayon::prelude::*;
+        let (planes, h, w) = self.shape;
+        assert!(hs > 0 && ws > 0 && small.len() == planes * hs * ws);
+        let m = upsample_rows(small, planes, (hs, ws), (h, w), |_, _| {});
+        let px = h * w;
+        (0..planes)
+            .into_par_iter()
+            .map(|l| {
+                let m = &m[l * px..][..px];
+                let delta = &self.delta[l * 3 * px..][..3 * px];
+                let mut raw = vec![0.0_f32; 3 * px];
+                for (p, &ml) in m.iter().enumerate() {
+                    let t = ml.tanh();
+                    for c in 0..3 {
+                        raw[3 * p + c] =
+                            (self.reference[c * px + p] + t * delta[c * px + p]).clamp(0.0, 1.0);
+                    }
+                }
+                image::Rgb32FImage::from_raw(w as u32, h as u32, raw)
+                    .expect("a buffer of 3 · w · h values")
+            })
+            .collect()
+    }
+}
+
+/// Per output coordinate, the two taps and the weight of the second, as burn's
+/// `interpolate_bilinear_impl` computes them (corners aligned; in f64, the weight then in f32).
+fn bilinear_axis(n_in: usize, n_out: usize) -> Vec<(usize, usize, f32)> {
+    let ratio = (n_in as f64 - 1.0) / (n_out.max(1) - 1).max(1) as f64;
+    (0..n_out)
+        .map(|o| {
+            let c = o as f64 * ratio;
+            let lo = c.floor().max(0.0) as usize;
+            (lo, (lo + 1).min(n_in - 1), (c - lo as f64).max(0.0) as f32)
+        })
+        .collect()
+}
+
+/// `planes` planes of `hs × ws` brought to `h × w` bilinearly, corners aligned (burn's
+/// `interpolate` in bilinear mode, the same sums in the same order), each output row `k`
+/// (plane `k / h`, row `k % h`) then passed to `then` in place, in parallel.
+fn upsample_rows(
+    small: &[f32],
+    planes: usize,
+    (hs, ws): (usize, usize),
+    (h, w): (usize, usize),
+    then: impl Fn(usize, &mut [f32]) + Sync,
+) -> Vec<f32> {
+    use rayon::prelude::*;
+    let (rows, cols) = (bilinear_axis(hs, h), bilinear_axis(ws, w));
+    let mut out = vec![0.0_f32; planes * h * w];
+    out.par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(k, dst)| {
+            let (plane, y) = (k / h, k % h);
+            let src = &small[plane * hs * ws..(plane + 1) * hs * ws];
+            let (y0, y1, wy) = rows[y];
+            let (top, bottom) = (&src[y0 * ws..(y0 + 1) * ws], &src[y1 * ws..(y1 + 1) * ws]);
+            for (o, &(x0, x1, wx)) in dst.iter_mut().zip(&cols) {
+                *o = top[x0] * (1.0 - wx) * (1.0 - wy)
+                    + top[x1] * wx * (1.0 - wy)
+                    + bottom[x0] * (1.0 - wx) * wy
+                    + bottom[x1] * wx * wy;
+            }
+            then(k, dst);
+        });
+    out
 }
 
 /// `[N, C, D, (H / block)·(W / block)]` as a flat vector: reference RGB, warped RGB, then

@@ -160,6 +160,13 @@ pub struct TrainArgs {
     /// with the sweep prior). Recorded in config.json.
     #[arg(long)]
     pub stage1_prototype_layout: bool,
+    /// Stage 1 also gives every plane a colour of its own: a second head channel, zero at the
+    /// start, moves each plane's colour from the reference's towards the source's warped onto
+    /// that plane (where the source sees it), so a plane can show what the reference does not.
+    /// Untrained, the model still renders the sweep. Needs --prior sweep; recorded in
+    /// config.json.
+    #[arg(long)]
+    pub stage1_colour: bool,
     /// Phase-1 steps (stage 1).
     #[arg(long, default_value_t = defaults().phase1_steps)]
     pub phase1_steps: usize,

@@ -91,6 +91,7 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         c.stage1.share_weights = !a.separate_weights;
         c.stage1.unet.halve_planes = a.stage1_halve_planes;
         c.stage1.unet.norm_groups = a.stage1_norm_groups;
+        c.stage1.unet.colour_head = a.stage1_colour;
         if a.stage1_prototype_layout {
             c.stage1.unet.prototype_layout = true;
             c.stage1.unet.dilations.clear();
@@ -113,6 +114,11 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         {
             bail!(
                 "--prior-window-radius, --prior-temperature, --prior-invalid-cost and --prior-clamp shape the sweep prior: they need --prior sweep"
+            );
+        }
+        if a.stage1_colour && a.prior != PriorArg::Sweep {
+            bail!(
+                "--stage1-colour mixes each plane's colour by a residual head on the sweep prior: it needs --prior sweep"
             );
         }
         c.prior_clamp = a.prior_clamp;

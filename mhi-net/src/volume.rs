@@ -340,7 +340,8 @@ impl SourceColour {
 
     /// What [`Self::apply`] gives for the logits `small` (`N·D` planes of `hs × ws`) brought
     /// to the full grid bilinearly as [`crate::Stage1::forward_blocks`] does (corners
-    /// aligned), as one picture per plane, on the CPU.
+    /// aligned), as one picture per plane, on the CPU (its tanh as `1 − 2 / (1 + e^2x)` with
+    /// `exp_approx`, within 10⁻⁶ of the library's).
     ///
     /// # Panics
     /// If `small` does not hold `N·D · hs · ws` values or a side is zero.
@@ -352,7 +353,13 @@ impl SourceColour {
         use rayon::prelude::*;
         let (planes, h, w) = self.shape;
         assert!(hs > 0 && ws > 0 && small.len() == planes * hs * ws);
-        let m = upsample_rows(small, planes, (hs, ws), (h, w), |_, _| {});
+        // tanh(x) = 1 − 2 / (1 + e^2x) through `exp_approx`, which vectorises (the library's
+        // tanh is a call per value: 90 ms of a 448 × 256 view's 80 planes on 2 cores).
+        let m = upsample_rows(small, planes, (hs, ws), (h, w), |_, row| {
+            for v in row.iter_mut() {
+                *v = 1.0 - 2.0 / (1.0 + exp_approx(2.0 * *v));
+            }
+        });
         let px = h * w;
         (0..planes)
             .into_par_iter()
@@ -360,8 +367,7 @@ impl SourceColour {
                 let m = &m[l * px..][..px];
                 let delta = &self.delta[l * 3 * px..][..3 * px];
                 let mut raw = vec![0.0_f32; 3 * px];
-                for (p, &ml) in m.iter().enumerate() {
-                    let t = ml.tanh();
+                for (p, &t) in m.iter().enumerate() {
                     for c in 0..3 {
                         raw[3 * p + c] =
                             (self.reference[c * px + p] + t * delta[c * px + p]).clamp(0.0, 1.0);

@@ -248,7 +248,7 @@ pub fn stage1_input_with(
             shape: (n * d, h, w),
         }
     });
-    let colour = colour.then(|| SourceColour::new(&psv, &reference.image));
+    let colour = colour.then(|| SourceColour::new(psv, &reference.image));
     Ok(Stage1Input {
         volume,
         prior,
@@ -259,63 +259,81 @@ pub fn stage1_input_with(
 }
 
 /// What a colour head mixes each plane's colour from: the reference image and, per plane, the
-/// source warped onto it minus the reference where the source sees the plane (zero where it
-/// does not). Plane `l`'s colour is `clamp(ref + tanh(m_l) · (src_l − ref)·valid_l, 0, 1)` for
-/// the head's logit `m_l`: the reference's at `m = 0` (an untrained head changes nothing), the
-/// source's as `m → ∞` where the source sees the plane, the reference's always where it does
-/// not. Kept on the CPU at full resolution.
+/// source warped onto it where the source sees the plane. Plane `l`'s colour is
+/// `clamp(ref + tanh(m_l) · (src_l − ref)·valid_l, 0, 1)` for the head's logit `m_l`: the
+/// reference's at `m = 0` (an untrained head changes nothing), the source's as `m → ∞` where the
+/// source sees the plane, the reference's always where it does not. Kept on the CPU at full
+/// resolution, in the plane-sweep volume's own buffers (moved, not copied).
 #[derive(Debug, Clone)]
 pub struct SourceColour {
-    /// The reference, planar `[3, H, W]`.
-    pub reference: Vec<f32>,
-    /// `(src_l − ref) · valid_l`, planar `[N·D, 3, H, W]`.
-    pub delta: Vec<f32>,
+    /// The reference, interleaved `[H, W, 3]`.
+    reference: Vec<f32>,
+    /// The source warped onto each plane, interleaved `[N·D, H, W, 3]` (the plane-sweep
+    /// volume's RGB).
+    source: Vec<f32>,
+    /// Where the source sees each plane (> 0), `[N·D, H, W]` (the plane-sweep volume's mask).
+    valid: Vec<f32>,
     /// `(N·D, H, W)`.
-    pub shape: (usize, usize, usize),
+    shape: (usize, usize, usize),
 }
 
 impl SourceColour {
-    /// From a plane-sweep volume of the source and the reference image on the same grid.
+    /// From a plane-sweep volume of the source (kept) and the reference image on the same
+    /// grid.
     ///
     /// # Panics
     /// If the image is not the volume's size.
-    pub fn new(psv: &PlaneSweepVolume, reference: &image::Rgb32FImage) -> Self {
-        use rayon::prelude::*;
+    pub fn new(psv: PlaneSweepVolume, reference: &image::Rgb32FImage) -> Self {
         let (w, h) = (psv.width as usize, psv.height as usize);
         assert_eq!(
             (reference.width() as usize, reference.height() as usize),
             (w, h)
         );
-        let px = w * h;
-        let raw = reference.as_raw();
-        let mut planar = vec![0.0_f32; 3 * px];
+        let planes = psv.n * psv.d;
+        assert_eq!(psv.rgb.len(), planes * 3 * w * h);
+        assert_eq!(psv.valid.len(), planes * w * h);
+        Self {
+            reference: reference.as_raw().clone(),
+            source: psv.rgb,
+            valid: psv.valid,
+            shape: (planes, h, w),
+        }
+    }
+
+    /// `(N·D, H, W)`.
+    pub fn shape(&self) -> (usize, usize, usize) {
+        self.shape
+    }
+
+    /// The reference planar, `[3, H, W]`, and `(src_l − ref) · valid_l` planar,
+    /// `[N·D, 3, H, W]`: what [`Self::apply`] mixes, laid out as tensors take them.
+    pub fn planar(&self) -> (Vec<f32>, Vec<f32>) {
+        use rayon::prelude::*;
+        let (planes, h, w) = self.shape;
+        let px = h * w;
+        let mut reference = vec![0.0_f32; 3 * px];
         for p in 0..px {
             for c in 0..3 {
-                planar[c * px + p] = raw[3 * p + c];
+                reference[c * px + p] = self.reference[3 * p + c];
             }
         }
-        let (n, d) = (psv.n, psv.d);
-        let mut delta = vec![0.0_f32; n * d * 3 * px];
+        let mut delta = vec![0.0_f32; planes * 3 * px];
         delta
             .par_chunks_mut(px.max(1))
             .enumerate()
             .for_each(|(k, dst)| {
                 let (l, c) = (k / 3, k % 3);
-                let (rgb, valid) = (psv.plane_rgb(l / d, l % d), psv.plane_valid(l / d, l % d));
-                let r = &planar[c * px..][..px];
+                let rgb = &self.source[l * 3 * px..][..3 * px];
+                let valid = &self.valid[l * px..][..px];
                 for (p, o) in dst.iter_mut().enumerate() {
                     *o = if valid[p] > 0.0 {
-                        rgb[3 * p + c] - r[p]
+                        rgb[3 * p + c] - self.reference[3 * p + c]
                     } else {
                         0.0
                     };
                 }
             });
-        Self {
-            reference: planar,
-            delta,
-            shape: (n * d, h, w),
-        }
+        (reference, delta)
     }
 
     /// Every plane's colour for the head's logits `m` (differentiable in `m`).
@@ -325,23 +343,18 @@ impl SourceColour {
     pub fn apply(&self, m: Tensor<4>) -> Tensor<4> {
         let (planes, h, w) = self.shape;
         let device = m.device();
-        let reference = Tensor::<4>::from_data(
-            TensorData::new(self.reference.clone(), [1, 3, h, w]),
-            &device,
-        )
-        .expand([planes, 3, h, w]);
-        let delta = Tensor::<4>::from_data(
-            TensorData::new(self.delta.clone(), [planes, 3, h, w]),
-            &device,
-        );
+        let (reference, delta) = self.planar();
+        let reference = Tensor::<4>::from_data(TensorData::new(reference, [1, 3, h, w]), &device)
+            .expand([planes, 3, h, w]);
+        let delta = Tensor::<4>::from_data(TensorData::new(delta, [planes, 3, h, w]), &device);
         (reference + burn::tensor::activation::tanh(m).expand([planes, 3, h, w]) * delta)
             .clamp(0.0, 1.0)
     }
 
     /// What [`Self::apply`] gives for the logits `small` (`N·D` planes of `hs × ws`) brought
     /// to the full grid bilinearly as [`crate::Stage1::forward_blocks`] does (corners
-    /// aligned), as one picture per plane, on the CPU (its tanh as `1 − 2 / (1 + e^2x)` with
-    /// `exp_approx`, within 10⁻⁶ of the library's).
+    /// aligned), as one picture per plane, on the CPU in one pass per plane (its tanh as
+    /// `1 − 2 / (1 + e^2x)` with `exp_approx`, within 10⁻⁶ of the library's).
     ///
     /// # Panics
     /// If `small` does not hold `N·D · hs · ws` values or a side is zero.
@@ -353,24 +366,32 @@ impl SourceColour {
         use rayon::prelude::*;
         let (planes, h, w) = self.shape;
         assert!(hs > 0 && ws > 0 && small.len() == planes * hs * ws);
-        // tanh(x) = 1 − 2 / (1 + e^2x) through `exp_approx`, which vectorises (the library's
-        // tanh is a call per value: 90 ms of a 448 × 256 view's 80 planes on 2 cores).
-        let m = upsample_rows(small, planes, (hs, ws), (h, w), |_, row| {
-            for v in row.iter_mut() {
-                *v = 1.0 - 2.0 / (1.0 + exp_approx(2.0 * *v));
-            }
-        });
+        let (rows, cols) = (bilinear_axis(hs, h), bilinear_axis(ws, w));
         let px = h * w;
         (0..planes)
             .into_par_iter()
             .map(|l| {
-                let m = &m[l * px..][..px];
-                let delta = &self.delta[l * 3 * px..][..3 * px];
+                let src = &small[l * hs * ws..][..hs * ws];
+                let rgb = &self.source[l * 3 * px..][..3 * px];
+                let valid = &self.valid[l * px..][..px];
                 let mut raw = vec![0.0_f32; 3 * px];
-                for (p, &t) in m.iter().enumerate() {
-                    for c in 0..3 {
-                        raw[3 * p + c] =
-                            (self.reference[c * px + p] + t * delta[c * px + p]).clamp(0.0, 1.0);
+                let mut t = vec![0.0_f32; w];
+                for (y, out) in raw.chunks_exact_mut(3 * w).enumerate() {
+                    upsample_row(src, ws, rows[y], &cols, &mut t);
+                    // tanh(x) = 1 − 2 / (1 + e^2x) through `exp_approx`, which vectorises (the
+                    // library's tanh is a call per value).
+                    for v in t.iter_mut() {
+                        *v = 1.0 - 2.0 / (1.0 + exp_approx(2.0 * *v));
+                    }
+                    let at = y * w;
+                    let (r, s) = (&self.reference[3 * at..][..3 * w], &rgb[3 * at..][..3 * w]);
+                    for (x, &tx) in t.iter().enumerate() {
+                        let seen = valid[at + x] > 0.0;
+                        for c in 0..3 {
+                            let k = 3 * x + c;
+                            let delta = if seen { s[k] - r[k] } else { 0.0 };
+                            out[k] = (r[k] + tx * delta).clamp(0.0, 1.0);
+                        }
                     }
                 }
                 image::Rgb32FImage::from_raw(w as u32, h as u32, raw)
@@ -410,18 +431,35 @@ fn upsample_rows(
         .enumerate()
         .for_each(|(k, dst)| {
             let (plane, y) = (k / h, k % h);
-            let src = &small[plane * hs * ws..(plane + 1) * hs * ws];
-            let (y0, y1, wy) = rows[y];
-            let (top, bottom) = (&src[y0 * ws..(y0 + 1) * ws], &src[y1 * ws..(y1 + 1) * ws]);
-            for (o, &(x0, x1, wx)) in dst.iter_mut().zip(&cols) {
-                *o = top[x0] * (1.0 - wx) * (1.0 - wy)
-                    + top[x1] * wx * (1.0 - wy)
-                    + bottom[x0] * (1.0 - wx) * wy
-                    + bottom[x1] * wx * wy;
-            }
+            upsample_row(
+                &small[plane * hs * ws..][..hs * ws],
+                ws,
+                rows[y],
+                &cols,
+                dst,
+            );
             then(k, dst);
         });
     out
+}
+
+/// One output row of a bilinear upsampling of the plane `src` (rows of `ws` values): the taps
+/// and weight of the row `(y0, y1, wy)` and of every column, as [`bilinear_axis`] gives them.
+#[inline]
+fn upsample_row(
+    src: &[f32],
+    ws: usize,
+    (y0, y1, wy): (usize, usize, f32),
+    cols: &[(usize, usize, f32)],
+    dst: &mut [f32],
+) {
+    let (top, bottom) = (&src[y0 * ws..(y0 + 1) * ws], &src[y1 * ws..(y1 + 1) * ws]);
+    for (o, &(x0, x1, wx)) in dst.iter_mut().zip(cols) {
+        *o = top[x0] * (1.0 - wx) * (1.0 - wy)
+            + top[x1] * wx * (1.0 - wy)
+            + bottom[x0] * (1.0 - wx) * wy
+            + bottom[x1] * wx * wy;
+    }
 }
 
 /// `[N, C, D, (H / block)·(W / block)]` as a flat vector: reference RGB, warped RGB, then

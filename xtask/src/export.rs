@@ -1,6 +1,8 @@
 //! `cargo xtask export` (and `render --export`): an MHI as a self-contained folder that a
-//! browser opens without a build step or network — the reference colour once (reference.png),
-//! each normal's kept alpha layers tiled in one PNG atlas (`alpha_normal_<i>.png`), a manifest
+//! browser opens without a build step or network — the reference colour once (reference.png)
+//! when the layers share it, each normal's kept alpha layers tiled in one PNG atlas
+//! (`alpha_normal_<i>.png`) and, when every layer has a colour of its own (a model with a
+//! colour head), their colours tiled the same way (`colour_normal_<i>.png`), a manifest
 //! (manifest.json: normals, depths, kept layers and their tiles, cameras, blend, plan), the same
 //! data in data.js for the page, and index.html: a WebGL2 viewer that composites each normal's
 //! planes back to front and blends the multi-normal images with the Soft weights, as the CPU
@@ -70,6 +72,9 @@ struct Layer {
 #[derive(Serialize)]
 struct Atlas {
     file: String,
+    /// The kept layers' own colours, tiled as the alphas (per-layer colour only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    colour_file: Option<String>,
     cols: usize,
     rows: usize,
 }
@@ -107,18 +112,28 @@ pub fn write_viewer(
     inputs: &[(&str, &Camera)],
     views: &[(String, &Camera)],
 ) -> anyhow::Result<()> {
-    let LayerColor::Shared(colour) = mhi.color() else {
-        bail!("only MHIs whose layers share the reference colour can be exported");
-    };
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let (w, h) = (
         mhi.reference().width as usize,
         mhi.reference().height as usize,
     );
-    let rgb = mhi_data::to_u8(colour);
+    let per_layer = match mhi.color() {
+        LayerColor::Shared(_) => None,
+        LayerColor::PerLayer(v) => {
+            if v.len() != mhi.n() * mhi.d() {
+                bail!(
+                    "the MHI has {} layer colours for {} layers",
+                    v.len(),
+                    mhi.n() * mhi.d()
+                );
+            }
+            Some(v)
+        }
+    };
     let mut layers = Vec::new();
     let mut atlases = Vec::new();
     let mut atlas_bytes = Vec::new();
+    let mut colour_bytes = Vec::new();
     for i in 0..mhi.n() {
         let kept: Vec<usize> = match plan.per_normal.get(i) {
             Some(u) if !u.dropped && !u.kept_depths.is_empty() => u.kept_depths.clone(),
@@ -128,6 +143,14 @@ pub fn write_viewer(
         let rows = kept.len().div_ceil(cols);
         let aw = cols * w;
         let mut a = vec![0_u8; aw * rows * h];
+        let mut c = vec![
+            0_u8;
+            if per_layer.is_some() {
+                3 * aw * rows * h
+            } else {
+                0
+            }
+        ];
         for (m, &j) in kept.iter().enumerate() {
             let (tx, ty) = (m % cols, m / cols);
             let src = mhi.alpha_layer(i, j);
@@ -135,6 +158,13 @@ pub fn write_viewer(
                 let row = &mut a[(ty * h + y) * aw + tx * w..][..w];
                 for (o, v) in row.iter_mut().zip(&src[y * w..(y + 1) * w]) {
                     *o = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+                }
+            }
+            if let Some(v) = per_layer {
+                let src = mhi_data::to_u8(&v[i * mhi.d() + j]);
+                for y in 0..h {
+                    let at = 3 * ((ty * h + y) * aw + tx * w);
+                    c[at..at + 3 * w].copy_from_slice(&src.as_raw()[3 * y * w..3 * (y + 1) * w]);
                 }
             }
             layers.push(Layer {
@@ -152,9 +182,31 @@ pub fn write_viewer(
         img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
         mhi_data::write_atomic(&dir.join(&file), &png)?;
         atlas_bytes.push(img.into_raw());
-        atlases.push(Atlas { file, cols, rows });
+        let colour_file = if per_layer.is_some() {
+            let file = format!("colour_normal_{i}.png");
+            let img = image::RgbImage::from_raw(aw as u32, (rows * h) as u32, c)
+                .context("colour atlas size")?;
+            mhi_data::write_png(&dir.join(&file), &img)?;
+            colour_bytes.push(img.into_raw());
+            Some(file)
+        } else {
+            None
+        };
+        atlases.push(Atlas {
+            file,
+            colour_file,
+            cols,
+            rows,
+        });
     }
-    mhi_data::write_png(&dir.join("reference.png"), &rgb)?;
+    let reference_rgb = match mhi.color() {
+        LayerColor::Shared(colour) => {
+            let rgb = mhi_data::to_u8(colour);
+            mhi_data::write_png(&dir.join("reference.png"), &rgb)?;
+            Some(rgb)
+        }
+        LayerColor::PerLayer(_) => None,
+    };
     let baseline = match inputs {
         [(_, a), (_, b), ..] => (a.center_in_world() - b.center_in_world()).length(),
         _ => 1.0,
@@ -180,7 +232,11 @@ pub fn write_viewer(
         depths: mhi.depths(),
         layers,
         atlases,
-        colour: "reference.png",
+        colour: if per_layer.is_some() {
+            "per-layer"
+        } else {
+            "reference.png"
+        },
         baseline,
         inputs: &inputs,
         views: &views,
@@ -191,11 +247,149 @@ pub fn write_viewer(
     mhi_data::write_atomic(&dir.join("manifest.json"), manifest_json.as_bytes())?;
     let b64 = |v: &[u8]| base64::engine::general_purpose::STANDARD.encode(v);
     let alphas: Vec<String> = atlas_bytes.iter().map(|a| b64(a)).collect();
+    let colours: Vec<String> = colour_bytes.iter().map(|a| b64(a)).collect();
     let data = format!(
         "// Written by `cargo xtask export`: the manifest and the layers as raw bytes for index.html.\nwindow.MHI_DATA = {};\n",
-        serde_json::json!({ "manifest": manifest, "colour": b64(rgb.as_raw()), "alphas": alphas })
+        serde_json::json!({
+            "manifest": manifest,
+            "colour": reference_rgb.map(|rgb| b64(rgb.as_raw())),
+            "alphas": alphas,
+            "colours": colours,
+        })
     );
     mhi_data::write_atomic(&dir.join("data.js"), data.as_bytes())?;
     mhi_data::write_atomic(&dir.join("index.html"), VIEWER_HTML.as_bytes())?;
     Ok(())
+}
+
+#[cfg(test)]
+#[path = "../tests/common/browser.rs"]
+mod browser;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{DMat3, DVec3};
+    use image::{Rgb, Rgb32FImage};
+    use mhi_geom::{BlendHeuristic, Intrinsics, NormalSet, RigidTransform};
+    use mhi_render::{Prune, RenderOptions};
+
+    /// An MHI whose every layer has a colour of its own, far from the others' (a hue per layer,
+    /// a gradient across the image) and opaque discs at different places per layer.
+    fn per_layer_mhi(reference: Camera) -> Mhi {
+        let normals = NormalSet::paper_subset(3).unwrap();
+        let depths = vec![8.0, 4.0, 2.5, 1.8];
+        let (w, h) = (reference.width, reference.height);
+        let (n, d) = (normals.len(), depths.len());
+        let mut alpha = Vec::new();
+        let mut colours = Vec::new();
+        for l in 0..n * d {
+            let (cx, cy) = (
+                (17 + 29 * l) as f32 % w as f32,
+                (11 + 23 * l) as f32 % h as f32,
+            );
+            for y in 0..h {
+                for x in 0..w {
+                    let r = ((x as f32 - cx).powi(2) + (y as f32 - cy).powi(2)).sqrt();
+                    alpha.push(if r < 22.0 { 0.8 } else { 0.05 });
+                }
+            }
+            let hue = l as f32 / (n * d) as f32;
+            colours.push(Rgb32FImage::from_fn(w, h, |x, y| {
+                let g = x as f32 / w as f32;
+                Rgb([
+                    (hue * 3.0).fract(),
+                    (0.3 + 0.7 * g * (1.0 - hue)).min(1.0),
+                    (y as f32 / h as f32 + hue).fract(),
+                ])
+            }));
+        }
+        Mhi::new(
+            normals,
+            depths,
+            reference,
+            LayerColor::PerLayer(colours),
+            alpha,
+        )
+        .unwrap()
+    }
+
+    /// A viewer of per-layer colours draws what the CPU renderer draws (Soft blend, exactly),
+    /// and the test would see a viewer that used one colour for every layer.
+    #[test]
+    fn the_viewer_shows_each_layers_own_colour() {
+        let Some(chrome) = browser::chromium_or_skip() else {
+            return;
+        };
+        let (w, h) = (128_u32, 96_u32);
+        let k = Intrinsics::new(110.0, 110.0, 64.0, 48.0).unwrap();
+        let reference = Camera::new(k, RigidTransform::IDENTITY, w, h).unwrap();
+        let turn = DMat3::from_rotation_y(0.06);
+        let target = Camera::new(
+            k,
+            RigidTransform::new(turn, DVec3::new(-0.25, 0.05, 0.0)).unwrap(),
+            w,
+            h,
+        )
+        .unwrap();
+        let mhi = per_layer_mhi(reference);
+        let weights = mhi_render::heuristic_weights(&mhi, &target, BlendHeuristic::Soft);
+        let plan = mhi_render::plan::analyse(&mhi, &[(&target, &weights)], Prune::NONE).unwrap();
+        let d = tempfile::tempdir().unwrap();
+        let dir = d.path().join("viewer");
+        write_viewer(
+            &dir,
+            &mhi,
+            &plan,
+            "test",
+            &[("reference", &reference)],
+            &[("target".to_string(), &target)],
+        )
+        .unwrap();
+        let manifest: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("manifest.json")).unwrap())
+                .unwrap();
+        assert_eq!(manifest["colour"], "per-layer");
+        assert!(dir.join("colour_normal_0.png").is_file());
+        assert!(!dir.join("reference.png").exists());
+
+        let cpu = mhi_render::render(&mhi, &target, &RenderOptions::default())
+            .unwrap()
+            .image;
+        let shot = browser::screenshot(&chrome, &dir.join("index.html"), "view=0", w, h, d.path());
+        let shot = Rgb32FImage::from_fn(w, h, |x, y| {
+            Rgb(shot.get_pixel(x, y).0.map(|v| f32::from(v) / 255.0))
+        });
+        let cpu8 = Rgb32FImage::from_fn(w, h, |x, y| {
+            Rgb(cpu
+                .get_pixel(x, y)
+                .0
+                .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() / 255.0))
+        });
+        let psnr = mhi_eval::psnr(&shot, &cpu8).unwrap();
+        eprintln!("per-layer colour: browser vs CPU PSNR {psnr:.2} dB");
+        assert!(psnr >= 35.0, "browser vs CPU: {psnr:.2} dB < 35 dB");
+
+        // The same alphas with every layer in the first layer's colour: far from the render
+        // above, so a viewer that ignored the layers' own colours would fail.
+        let LayerColor::PerLayer(v) = mhi.color() else {
+            unreachable!()
+        };
+        let one = Mhi::new(
+            mhi.normals().clone(),
+            mhi.depths().to_vec(),
+            reference,
+            LayerColor::Shared(v[0].clone()),
+            mhi.alpha().to_vec(),
+        )
+        .unwrap();
+        let shared = mhi_render::render(&one, &target, &RenderOptions::default())
+            .unwrap()
+            .image;
+        let apart = mhi_eval::psnr(&shared, &cpu).unwrap();
+        assert!(
+            apart < 25.0,
+            "one colour for all layers scores {apart:.2} dB"
+        );
+    }
 }

@@ -7,24 +7,13 @@
 //! (as `.ci/run` sets after installing Debian's `chromium`), which turns a missing browser
 //! into a failure.
 
-use std::path::{Path, PathBuf};
+mod common;
+
 use std::process::Command;
 
-use mhi_data::{SynthConfig, generate};
+use common::browser::{chromium_or_skip, screenshot};
 
-fn chromium() -> Option<PathBuf> {
-    if let Ok(p) = std::env::var("MHI_CHROMIUM") {
-        return Some(PathBuf::from(p));
-    }
-    [
-        "/usr/bin/chromium",
-        "/usr/bin/chromium-browser",
-        "/usr/bin/google-chrome",
-    ]
-    .iter()
-    .map(PathBuf::from)
-    .find(|p| p.is_file())
-}
+use mhi_data::{SynthConfig, generate};
 
 fn xtask(args: &[&str]) {
     let out = Command::new(env!("CARGO_BIN_EXE_xtask"))
@@ -38,56 +27,9 @@ fn xtask(args: &[&str]) {
     );
 }
 
-/// A screenshot of `page#hash`, cropped to `w × h` (the window is larger: headless Chromium's
-/// viewport has a minimum size).
-fn screenshot(
-    browser: &Path,
-    page: &Path,
-    hash: &str,
-    w: u32,
-    h: u32,
-    dir: &Path,
-) -> image::RgbImage {
-    let shot = dir.join(format!("shot-{}.png", hash.replace(['=', '&'], "_")));
-    let out = Command::new(browser)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--use-angle=swiftshader",
-            "--enable-unsafe-swiftshader",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            "--no-first-run",
-            "--hide-scrollbars",
-            "--force-device-scale-factor=1",
-            "--window-size=480,360",
-        ])
-        .arg(format!("--user-data-dir={}", dir.join("profile").display()))
-        .arg(format!("--screenshot={}", shot.display()))
-        .arg(format!("file://{}#{hash}&nohud&zoom=1", page.display()))
-        .output()
-        .expect("run chromium");
-    assert!(
-        shot.is_file(),
-        "chromium wrote no screenshot: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let img = image::open(&shot).expect("screenshot").to_rgb8();
-    image::imageops::crop_imm(&img, 0, 0, w, h).to_image()
-}
-
 #[test]
 fn the_browser_viewer_agrees_with_the_cpu_renderer() {
-    let Some(browser) = chromium() else {
-        assert!(
-            std::env::var("MHI_REQUIRE_BROWSER").as_deref() != Ok("1"),
-            "MHI_REQUIRE_BROWSER=1 but no Chromium found (install Debian's chromium)"
-        );
-        eprintln!(
-            "SKIPPED: no Chromium at /usr/bin/chromium (or $MHI_CHROMIUM); the viewer was not checked"
-        );
+    let Some(browser) = chromium_or_skip() else {
         return;
     };
     let d = tempfile::tempdir().unwrap();

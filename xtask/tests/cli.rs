@@ -568,6 +568,12 @@ fn eval_writes_a_complete_report_and_keeps_an_existing_one() {
     ] {
         assert!(out.join(f).is_file(), "{f} not written");
     }
+    // The run is on the sweep prior: its curve has the sweep's level (step 0) as a line.
+    let curve = std::fs::read_to_string(out.join("training_curve.svg")).unwrap();
+    assert!(
+        curve.contains("the sweep N=2 (its untrained step 0)"),
+        "no sweep level in the training curve"
+    );
     let before = std::fs::read(out.join("report.json")).unwrap();
     let err = fails(&eval);
     assert!(err.contains("--overwrite"), "{err}");

@@ -629,6 +629,18 @@ fn training_curves(models: &[Loaded]) -> anyhow::Result<Vec<Curve>> {
             .run
             .file_name()
             .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+        // On the sweep prior the untrained model renders the sweep (tested to 1e-5), so the
+        // step-0 row is the sweep's level on the same validation triplets: drawn as a line.
+        let sweep_level = (m.model.config().prior == mhi_net::Prior::Sweep)
+            .then(|| rows.first().filter(|r| r.step == 0))
+            .flatten()
+            .map(|r0| Curve {
+                label: format!("{name}: the sweep N={n} (its untrained step 0)"),
+                points: vec![
+                    (0.0, r0.psnr_soft),
+                    (rows.last().map_or(0.0, |r| r.elapsed_s), r0.psnr_soft),
+                ],
+            });
         if n > 1 {
             curves.push(Curve {
                 label: format!("{name}: learned blend (N={n})"),
@@ -644,6 +656,7 @@ fn training_curves(models: &[Loaded]) -> anyhow::Result<Vec<Curve>> {
                 points: soft,
             });
         }
+        curves.extend(sweep_level);
     }
     Ok(curves)
 }
@@ -721,7 +734,7 @@ fn markdown(
     if has_curves {
         let _ = writeln!(
             s,
-            "## Training\n\n![training curve](training_curve.svg)\n\nValidation PSNR (held-out triplets of the training scenes, logged at every checkpoint) against wall-clock training time.\n"
+            "## Training\n\n![training curve](training_curve.svg)\n\nValidation PSNR (held-out triplets of the training scenes, logged at every checkpoint) against wall-clock training time; for a model on the sweep prior a flat line marks the sweep's level on the same triplets (its untrained step 0, which renders the sweep).\n"
         );
     }
     let _ = writeln!(

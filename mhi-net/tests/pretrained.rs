@@ -1,14 +1,26 @@
 //! The pretrained model shipped in `models/` loads, is the model its MODEL.md describes (the
-//! sweep prior, N = 5, D = 16), and a copy whose config.json no longer matches its weights is
-//! refused with a message that says so; the MPI baseline beside it shares its recipe.
+//! sweep prior, N = 5, D = 16, a colour head), and a copy whose config.json no longer matches its
+//! weights is refused with a message that says so; the MPI baseline beside it shares its recipe;
+//! the previous pretrained model (no colour head) and its MPI still load.
 
 use std::path::{Path, PathBuf};
 
 use burn::tensor::Device;
 use mhi_net::{Model, Prior};
 
+/// Rounds of blending steps in the shipped MHI's training (one: 3,900 stage-1 steps, then 400
+/// blending steps).
+const BLEND_ROUNDS: usize = 1;
+
+fn model(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../models")
+        .join(name)
+}
+
+/// The model `render` and `eval` use by default (`xtask/src/models.rs`).
 fn shipped() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/mhi-n5d16")
+    model("mhi-n5d16-colour")
 }
 
 fn copy_dir(from: &Path, to: &Path) {
@@ -33,6 +45,10 @@ fn the_shipped_model_loads_and_a_mismatched_config_is_refused() {
     );
     let m = Model::load(&dir, Device::flex()).unwrap();
     assert_eq!(m.config().prior, Prior::Sweep);
+    assert!(
+        m.config().stage1.unet.colour_head,
+        "the shipped model has a colour head"
+    );
     assert_eq!((m.normals().len(), m.depths().len()), (5, 16));
     assert!(
         m.blend_trained(),
@@ -59,14 +75,31 @@ fn the_shipped_model_loads_and_a_mismatched_config_is_refused() {
 /// The learned MPI baseline shipped beside it has the same recipe with one normal.
 #[test]
 fn the_mpi_baseline_loads_with_the_same_recipe() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/mpi-n1d16");
-    let mpi = Model::load(&dir, Device::flex()).unwrap();
+    let mpi = Model::load(&model("mpi-n1d16-colour"), Device::flex()).unwrap();
     let mhi = Model::load(&shipped(), Device::flex()).unwrap();
     assert_eq!((mpi.normals().len(), mpi.depths().len()), (1, 16));
     let (a, b) = (mpi.config(), mhi.config());
     assert_eq!(a.prior, b.prior);
     assert_eq!((a.width, a.height, a.lr), (b.width, b.height, b.lr));
     assert_eq!(a.stage1.scale, b.stage1.scale);
+    assert!(a.stage1.unet.colour_head && b.stage1.unet.colour_head);
+    assert_eq!(a.data, b.data);
+    // The same stage-1 steps: the MHI's config counts its blending steps into phase 1's end
+    // (BLEND_ROUNDS rounds of 400 between its stage-1 parts); the MPI has no blending phase.
+    assert_eq!(mpi.step(), a.phase1_steps);
+    assert_eq!(a.phase1_steps, b.phase1_steps - (BLEND_ROUNDS - 1) * 400);
+    assert_eq!(mhi.step(), b.phase1_steps + b.phase2_steps);
+}
+
+/// The previous pretrained model (no colour head, 8,200 steps) and its MPI still load, with the
+/// recipe their MODEL.md gives.
+#[test]
+fn the_previous_model_and_its_mpi_still_load() {
+    let mhi = Model::load(&model("mhi-n5d16"), Device::flex()).unwrap();
+    let mpi = Model::load(&model("mpi-n1d16"), Device::flex()).unwrap();
+    assert!(!mhi.config().stage1.unet.colour_head);
+    assert_eq!((mpi.normals().len(), mpi.depths().len()), (1, 16));
+    let (a, b) = (mpi.config(), mhi.config());
     // Both trained their stage 1 for 6,600 steps. The MHI's were interleaved with three rounds
     // of 400 blending steps (1,800, 400 blending, then after each of three resumes 1,600, 2,400
     // and 800 more and 400 blending), so its config counts phase 1 to step 7,800; the MPI has

@@ -4,9 +4,9 @@
 use std::path::PathBuf;
 
 /// Folder name of the pretrained model under `models/`.
-pub const PRETRAINED_NAME: &str = "mhi-n5d16";
+pub const PRETRAINED_NAME: &str = "mhi-n5d16-colour";
 
-/// The pretrained model's directory (`models/mhi-n5d16` at the repository root), whether or not
+/// The pretrained model's directory (`models/mhi-n5d16-colour` at the repository root), whether or not
 /// it exists.
 pub fn pretrained_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

@@ -5,8 +5,10 @@
 //! training moves the colours; a checkpoint with a colour head does not load into a config
 //! without one.
 
+mod common;
+
 use burn::tensor::{Device, Tensor, TensorData};
-use mhi_data::{SynthConfig, generate};
+use common::{synthetic, tiny_prior_config, trainer};
 use mhi_geom::{BlendHeuristic, NormalSet, depths_linear_in_disparity};
 use mhi_net::loss::TrainLoss;
 use mhi_net::{Model, TrainConfig, Trainer, stage1_input_with};
@@ -15,53 +17,16 @@ use mhi_render::{
 };
 
 fn config() -> TrainConfig {
-    let mut c = TrainConfig::for_normals(3);
-    c.stage1.unet.width = 4;
-    c.stage1.unet.levels = 1;
-    c.stage1.unet.dilations = vec![2];
-    c.blend.width = 4;
-    c.blend.levels = 1;
-    c.width = 32;
-    c.height = 32;
-    c.planes = 6;
-    c.lr = 5e-3;
-    c.phase1_steps = 6;
+    let mut c = tiny_prior_config();
     c.phase2_steps = 2;
     c.checkpoint_every = 4;
-    c.val_samples = 0;
-    let mut c = c.with_sweep_prior();
     c.stage1.unet.colour_head = true;
     c
 }
 
-fn synthetic(seed: u64) -> tempfile::TempDir {
-    let d = tempfile::tempdir().unwrap();
-    generate(
-        &SynthConfig {
-            scenes: 2,
-            frames: 6,
-            width: 48,
-            height: 48,
-            seed,
-            test_fraction: 0.0,
-            ..SynthConfig::default()
-        },
-        d.path(),
-        &|| {},
-    )
-    .unwrap();
-    d
-}
-
-fn trainer(cfg: &TrainConfig, dir: &std::path::Path) -> Trainer {
-    Trainer::new(
-        cfg.clone(),
-        &dir.join("run"),
-        dir,
-        TrainLoss::Photometric,
-        Device::flex().autodiff(),
-    )
-    .unwrap()
+/// Two scenes of six 48 × 48 frames.
+fn two_scenes(seed: u64) -> tempfile::TempDir {
+    synthetic(2, 6, (48, 48), seed)
 }
 
 fn max_diff(a: &[f32], b: &[f32]) -> f32 {
@@ -74,7 +39,7 @@ fn max_diff(a: &[f32], b: &[f32]) -> f32 {
 
 #[test]
 fn an_untrained_colour_head_renders_the_sweep() {
-    let d = synthetic(3);
+    let d = two_scenes(3);
     let cfg = config();
     let trainer = trainer(&cfg, d.path());
     let model = Model::untrained(cfg, Device::flex()).unwrap();
@@ -123,7 +88,7 @@ fn an_untrained_colour_head_renders_the_sweep() {
 /// path of inference (`apply_upsampled`) gives training's colours for any logits on blocks.
 #[test]
 fn a_saturated_colour_head_shows_the_source_and_inference_matches_training() {
-    let d = synthetic(5);
+    let d = two_scenes(5);
     let cfg = config();
     let s = trainer(&cfg, d.path()).sample(0).unwrap();
     let device = Device::flex();
@@ -220,7 +185,7 @@ fn a_saturated_colour_head_shows_the_source_and_inference_matches_training() {
 
 #[test]
 fn training_moves_the_colours_and_the_checkpoint_needs_its_colour_head() {
-    let d = synthetic(7);
+    let d = two_scenes(7);
     let cfg = config();
     let mut t = trainer(&cfg, d.path());
     while !t.finished() {
@@ -266,7 +231,7 @@ fn training_moves_the_colours_and_the_checkpoint_needs_its_colour_head() {
 fn a_colour_head_needs_the_sweep_prior() {
     let mut c = TrainConfig::for_normals(3);
     c.stage1.unet.colour_head = true;
-    let d = synthetic(9);
+    let d = two_scenes(9);
     let err = Trainer::new(
         c,
         &d.path().join("run"),

@@ -2,66 +2,16 @@
 //! sweep's, its blend weights Soft's and its render the sweep's Soft render (to 1e-5); training
 //! moves it away from there.
 
+mod common;
+
 use burn::tensor::Device;
-use mhi_data::{SynthConfig, generate};
+use common::{synthetic, tiny_prior_config, trainer};
 use mhi_geom::BlendHeuristic;
-use mhi_net::loss::TrainLoss;
-use mhi_net::{Model, Prior, TrainConfig, Trainer};
+use mhi_net::{Model, Prior, TrainConfig};
 use mhi_render::{Blend, Prune, RenderOptions, SweepConfig, heuristic_weights, render, sweep_mhi};
 
 fn config() -> TrainConfig {
-    let mut c = TrainConfig::for_normals(3);
-    c.stage1.unet.width = 4;
-    c.stage1.unet.levels = 1;
-    c.stage1.unet.dilations = vec![2];
-    c.blend.width = 4;
-    c.blend.levels = 1;
-    c.width = 32;
-    c.height = 32;
-    c.planes = 6;
-    c.lr = 5e-3;
-    c.phase1_steps = 6;
-    c.phase2_steps = 4;
-    c.checkpoint_every = 5;
-    c.val_samples = 0;
-    c.with_sweep_prior()
-}
-
-/// A synthetic training set of `scenes` scenes of `frames` frames in a temporary folder.
-fn synthetic(
-    scenes: usize,
-    frames: usize,
-    (width, height): (u32, u32),
-    seed: u64,
-) -> tempfile::TempDir {
-    let d = tempfile::tempdir().unwrap();
-    generate(
-        &SynthConfig {
-            scenes,
-            frames,
-            width,
-            height,
-            seed,
-            test_fraction: 0.0,
-            ..SynthConfig::default()
-        },
-        d.path(),
-        &|| {},
-    )
-    .unwrap();
-    d
-}
-
-/// A trainer of `cfg` on the synthetic set in `dir` (its run in `dir/run`), with L1 + SSIM.
-fn trainer(cfg: &TrainConfig, dir: &std::path::Path) -> Trainer {
-    Trainer::new(
-        cfg.clone(),
-        &dir.join("run"),
-        dir,
-        TrainLoss::Photometric,
-        Device::flex().autodiff(),
-    )
-    .unwrap()
+    tiny_prior_config()
 }
 
 fn options(blend: Blend<'_>) -> RenderOptions<'_> {

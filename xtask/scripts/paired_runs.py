@@ -13,10 +13,16 @@ import sys
 
 
 def by_triplet(path, method):
-    out = {}
+    """METHOD's covered PSNR per triplet; a report holding METHOD at several N x D (a
+    `--sweep-grid` with more than one entry) is refused rather than mixed."""
+    out, configs = {}, set()
     for m in json.load(open(path))["measurements"]:
         if m["method"] == method and m.get("psnr_covered") is not None:
+            configs.add((m.get("normals"), m.get("planes")))
             out[m["triplet"]] = m["psnr_covered"]
+    if len(configs) > 1:
+        sys.exit(f"{path}: {method} appears at several N x D {sorted(configs)}; "
+                 "compare reports with one configuration of it")
     return out
 
 

@@ -300,14 +300,9 @@ impl SourceColour {
         }
     }
 
-    /// `(N·D, H, W)`.
-    pub fn shape(&self) -> (usize, usize, usize) {
-        self.shape
-    }
-
     /// The reference planar, `[3, H, W]`, and `(src_l − ref) · valid_l` planar,
     /// `[N·D, 3, H, W]`: what [`Self::apply`] mixes, laid out as tensors take them.
-    pub fn planar(&self) -> (Vec<f32>, Vec<f32>) {
+    fn planar(&self) -> (Vec<f32>, Vec<f32>) {
         use rayon::prelude::*;
         let (planes, h, w) = self.shape;
         let px = h * w;

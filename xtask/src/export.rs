@@ -10,7 +10,7 @@
 
 use std::path::Path;
 
-use anyhow::{Context, bail};
+use anyhow::Context;
 use base64::Engine as _;
 use mhi_geom::Camera;
 use mhi_render::plan::ScenePlan;
@@ -117,18 +117,10 @@ pub fn write_viewer(
         mhi.reference().width as usize,
         mhi.reference().height as usize,
     );
-    let per_layer = match mhi.color() {
-        LayerColor::Shared(_) => None,
-        LayerColor::PerLayer(v) => {
-            if v.len() != mhi.n() * mhi.d() {
-                bail!(
-                    "the MHI has {} layer colours for {} layers",
-                    v.len(),
-                    mhi.n() * mhi.d()
-                );
-            }
-            Some(v)
-        }
+    // `Mhi::new` holds a per-layer MHI to one colour image per layer.
+    let (shared, per_layer) = match mhi.color() {
+        LayerColor::Shared(colour) => (Some(colour), None),
+        LayerColor::PerLayer(v) => (None, Some(v)),
     };
     let mut layers = Vec::new();
     let mut atlases = Vec::new();
@@ -199,13 +191,13 @@ pub fn write_viewer(
             rows,
         });
     }
-    let reference_rgb = match mhi.color() {
-        LayerColor::Shared(colour) => {
+    let reference_rgb = match shared {
+        Some(colour) => {
             let rgb = mhi_data::to_u8(colour);
             mhi_data::write_png(&dir.join("reference.png"), &rgb)?;
             Some(rgb)
         }
-        LayerColor::PerLayer(_) => None,
+        None => None,
     };
     let baseline = match inputs {
         [(_, a), (_, b), ..] => (a.center_in_world() - b.center_in_world()).length(),

@@ -375,6 +375,13 @@ pub struct EvalArgs {
     /// The error budget of a pruned render, in 8-bit levels per pixel (1 = 1/255).
     #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub budget: f32,
+    /// Also measure leaving out within these budgets (8-bit levels, comma-separated, e.g.
+    /// `2,4,8`): each MHI of the table below is rendered within each of them and exactly,
+    /// alternately, per view; the pruned-against-exact table gets a row per budget and
+    /// `budget_tradeoff.png` draws the speed-up against the PSNR change, so you can pick a
+    /// budget by what it buys and costs. The scored images stay those within --budget.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub also_budgets: Vec<f32>,
 }
 
 /// A number in (0, 1]: `give` says what to write when `s` is not a number, `why` why the

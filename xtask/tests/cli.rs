@@ -493,6 +493,8 @@ fn eval_writes_a_complete_report_and_keeps_an_existing_one() {
         "3",
         "--samples",
         "1",
+        "--also-budgets",
+        "16,4",
         "--out",
         o_,
         "--cache",
@@ -503,6 +505,29 @@ fn eval_writes_a_complete_report_and_keeps_an_existing_one() {
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     let rows = v["rows"].as_array().unwrap();
+    // The pruned-against-exact table: a row per MHI and budget (--budget 1 and --also-budgets,
+    // in increasing order), each within its own budget at every pixel.
+    let p: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("pruning.json")).unwrap()).unwrap();
+    let prune_rows = p["rows"].as_array().unwrap();
+    for (method, normals) in [("soft", 2), ("sweep", 1), ("sweep", 2), ("oracle", 2)] {
+        let budgets: Vec<f64> = prune_rows
+            .iter()
+            .filter(|r| r["method"] == method && r["normals"] == normals)
+            .map(|r| r["budget"].as_f64().unwrap())
+            .collect();
+        assert_eq!(
+            budgets,
+            [1.0, 4.0, 16.0],
+            "{method} N={normals}: {prune_rows:?}"
+        );
+    }
+    for r in prune_rows {
+        let (budget, bound) = (r["budget"].as_f64().unwrap(), r["bound"].as_f64().unwrap());
+        assert!(bound <= budget / 255.0 + 1e-6, "{r}");
+        assert!(r["max_abs"].as_f64().unwrap() <= bound + 1e-5, "{r}");
+        assert_eq!(r["over_bound"], 0, "{r}");
+    }
     let methods: std::collections::BTreeSet<&str> =
         rows.iter().map(|r| r["method"].as_str().unwrap()).collect();
     for m in [
@@ -561,6 +586,7 @@ fn eval_writes_a_complete_report_and_keeps_an_existing_one() {
         "report.csv",
         "error_vs_time.svg",
         "error_vs_time.png",
+        "budget_tradeoff.png",
         "training_curve.png",
         "orbit.gif",
         "layers/normal_0.png",
@@ -721,6 +747,18 @@ fn eval_refuses_unknown_methods_tiny_sizes_and_stale_or_degenerate_indices() {
     v[8] = "4x4".into();
     let err = fails(&refs(&v));
     assert!(err.contains("--size 4x4") && err.contains("32"), "{err}");
+    for (bad, why) in [
+        ("0", "(0, 255]"),
+        ("2,x", "x"),
+        ("1", "twice"),
+        ("4,4", "twice"),
+    ] {
+        let err = fails(&refs(&base(&["--also-budgets", bad])));
+        assert!(
+            err.contains("--also-budgets") && err.contains(why),
+            "{bad}: {err}"
+        );
+    }
     assert!(!out.exists(), "a refused eval leaves no output folder");
     // An index with a degenerate triplet, then one whose frames changed.
     let index = d.path().join("index.json");

@@ -20,7 +20,7 @@ pub(super) fn blended(
             blend_ms: b.blend_ms,
             ..base
         },
-        exact: None,
+        exact: Vec::new(),
     }
 }
 
@@ -67,7 +67,7 @@ impl Ctx<'_> {
                     blend_ms: ms(t0),
                     ..Times::default()
                 },
-                exact: None,
+                exact: Vec::new(),
             });
         }
         for m in self.models {
@@ -94,12 +94,12 @@ impl Ctx<'_> {
             // With the Soft blend's pruned-against-exact check, the multi-normal images are
             // rendered both ways, alternately (the pruned ones are scored).
             let check = self.wants(Method::Soft) && a.prune().budget > 0.0 && !is_mpi;
+            let timed = |prune| -> anyhow::Result<_> {
+                let m = multi_normal(&mhi, &tf.camera, prune)?;
+                let ms = m.render_ms;
+                Ok((m, ms))
+            };
             let (mn, exact_mn) = if check {
-                let timed = |prune| -> anyhow::Result<_> {
-                    let m = multi_normal(&mhi, &tf.camera, prune)?;
-                    let ms = m.render_ms;
-                    Ok((m, ms))
-                };
                 let ((e, e_ms), (p, p_ms)) = paired(|| timed(Prune::NONE), || timed(a.prune()))?;
                 (
                     mhi_net::MultiNormal {
@@ -124,7 +124,7 @@ impl Ctx<'_> {
                     planes: d,
                     image: mn.images[0].clone(),
                     times: base,
-                    exact: None,
+                    exact: Vec::new(),
                 });
                 continue;
             }
@@ -144,7 +144,9 @@ impl Ctx<'_> {
                     // The same MHI's multi-normal images rendered exactly, Soft-blended. They
                     // were kept (the learned blend reads them), each within the budget on its
                     // own, so the floor is the per-normal one.
-                    o.exact = Some(ExactCheck {
+                    o.exact.push(ExactCheck {
+                        budget: a.budget,
+                        pruned: None,
                         image: combine(&e.images, &weights),
                         render_ms: *e_ms,
                         stats: mn.stats,
@@ -154,6 +156,25 @@ impl Ctx<'_> {
                             a.prune().budget,
                         ),
                     });
+                }
+                if which == Method::Soft {
+                    for &b in &a.also_budgets {
+                        let prune = Prune::with_budget(b / 255.0);
+                        let ((e, e_ms), (p, p_ms)) =
+                            paired(|| timed(Prune::NONE), || timed(prune))?;
+                        o.exact.push(ExactCheck {
+                            budget: b,
+                            pruned: Some((combine(&p.images, &weights), p_ms)),
+                            image: combine(&e.images, &weights),
+                            render_ms: e_ms,
+                            stats: p.stats,
+                            needed: mhi_render::needed_share_per_normal(
+                                &mhi,
+                                &tf.camera,
+                                prune.budget,
+                            ),
+                        });
+                    }
                 }
                 out.push(o);
             }
@@ -170,7 +191,7 @@ impl Ctx<'_> {
                     .sweep_config
                     .scaled_to_short_side(rf.image.width().min(rf.image.height())),
             })?;
-            let (image, render_ms, exact) = render_soft(&mhi, tf, a.prune())?;
+            let (image, render_ms, exact) = render_soft(&mhi, tf, a)?;
             out.push(Output {
                 method: "sweep".into(),
                 normals: n,
@@ -194,7 +215,7 @@ impl Ctx<'_> {
                     depths: a.range.depths(d)?,
                     truth: &truth,
                 })?;
-                let (image, render_ms, exact) = render_soft(&mhi, tf, a.prune())?;
+                let (image, render_ms, exact) = render_soft(&mhi, tf, a)?;
                 out.push(Output {
                     method: "oracle".into(),
                     normals: n,
@@ -212,14 +233,15 @@ impl Ctx<'_> {
     }
 }
 
-/// Render with Soft blending within `prune` (timed) and, when something may be left out, also
-/// exactly (timed) for the pruned-vs-exact table. Returns the image to score (the pruned one),
-/// its render time and the exact check.
+/// Render with Soft blending within --budget (timed) and, for the pruned-vs-exact table, also
+/// exactly (timed, alternately) when something may be left out, and within each of
+/// --also-budgets. Returns the image to score (within --budget), its render time and the
+/// checks.
 pub(super) fn render_soft(
     mhi: &Mhi,
     tf: &LoadedFrame,
-    prune: Prune,
-) -> anyhow::Result<(Rgb32FImage, f64, Option<ExactCheck>)> {
+    a: &EvalArgs,
+) -> anyhow::Result<(Rgb32FImage, f64, Vec<ExactCheck>)> {
     let go = |p: Prune| -> anyhow::Result<(mhi_render::Rendered, f64)> {
         let t0 = Instant::now();
         let r = render(
@@ -233,21 +255,36 @@ pub(super) fn render_soft(
         )?;
         Ok((r, ms(t0)))
     };
-    if prune.budget <= 0.0 {
+    let prune = a.prune();
+    let mut checks = Vec::new();
+    let (image, image_ms) = if prune.budget <= 0.0 {
         let (exact, exact_ms) = go(Prune::NONE)?;
-        return Ok((exact.image, exact_ms, None));
-    }
-    let ((exact, exact_ms), (pruned, pruned_ms)) = paired(|| go(Prune::NONE), || go(prune))?;
-    Ok((
-        pruned.image,
-        pruned_ms,
-        Some(ExactCheck {
+        (exact.image, exact_ms)
+    } else {
+        let ((exact, exact_ms), (pruned, pruned_ms)) = paired(|| go(Prune::NONE), || go(prune))?;
+        checks.push(ExactCheck {
+            budget: a.budget,
+            pruned: None,
             needed: mhi_render::needed_share(mhi, &tf.camera, &exact.weights, prune.budget)?,
             image: exact.image,
             render_ms: exact_ms,
             stats: pruned.stats,
-        }),
-    ))
+        });
+        (pruned.image, pruned_ms)
+    };
+    for &b in &a.also_budgets {
+        let prune = Prune::with_budget(b / 255.0);
+        let ((exact, exact_ms), (pruned, pruned_ms)) = paired(|| go(Prune::NONE), || go(prune))?;
+        checks.push(ExactCheck {
+            budget: b,
+            pruned: Some((pruned.image, pruned_ms)),
+            needed: mhi_render::needed_share(mhi, &tf.camera, &exact.weights, prune.budget)?,
+            image: exact.image,
+            render_ms: exact_ms,
+            stats: pruned.stats,
+        });
+    }
+    Ok((image, image_ms, checks))
 }
 
 /// Renders of one MHI and view timed exactly and pruned, alternately, this many times each: a

@@ -28,7 +28,7 @@ mod pruning;
 use crate::views::{clipped, enlarge, factor_for, layer_picture, strip};
 use methods::Ctx;
 use pictures::{write_layers_and_orbit, write_samples};
-use pruning::{PruneMeasure, prune_markdown, prune_rows};
+use pruning::{PruneMeasure, budget_tradeoff, prune_markdown, prune_rows};
 
 use crate::common::size_for;
 use crate::options::{EvalArgs, Method};
@@ -41,6 +41,15 @@ impl EvalArgs {
         } else {
             Prune::with_budget(self.budget / 255.0)
         }
+    }
+
+    /// The budgets (8-bit levels) measured against exact renders: --budget (unless --exact)
+    /// and --also-budgets.
+    fn measured_budgets(&self) -> Vec<f32> {
+        let main = (!self.exact && self.budget > 0.0).then_some(self.budget);
+        main.into_iter()
+            .chain(self.also_budgets.iter().copied())
+            .collect()
     }
 }
 
@@ -72,14 +81,20 @@ struct Output {
     planes: usize,
     image: Rgb32FImage,
     times: Times,
-    /// The same MHI rendered exactly, when `image` was rendered pruned.
-    exact: Option<ExactCheck>,
+    /// The same MHI rendered exactly beside renders of it within a budget: `image` (within
+    /// --budget) and any within --also-budgets.
+    exact: Vec<ExactCheck>,
 }
 
 /// An exact render beside a pruned one of the same MHI and view.
 struct ExactCheck {
+    /// The budget of the pruned render, in 8-bit levels.
+    budget: f32,
+    /// The pruned render and its time, when it is not the scored image (a budget of
+    /// --also-budgets; the scored one's time is in the output's `times`).
+    pruned: Option<(Rgb32FImage, f64)>,
     image: Rgb32FImage,
-    /// Time of the exact render (the pruned one's is in `times`).
+    /// Time of the exact render.
     render_ms: f64,
     /// What the pruned render left out.
     stats: mhi_render::RenderStats,
@@ -144,6 +159,19 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             "--budget {} must be a number of 8-bit levels in [0, 255] (1 by default)",
             a.budget
         );
+    }
+    for (k, b) in a.also_budgets.iter().enumerate() {
+        if !(b.is_finite() && *b > 0.0 && *b <= 255.0) {
+            bail!(
+                "--also-budgets: {b} must be a number of 8-bit levels in (0, 255] (e.g. --also-budgets 2,4,8)"
+            );
+        }
+        if a.also_budgets[..k].contains(b) || (!a.exact && *b == a.budget) {
+            bail!(
+                "--also-budgets: {b} is given twice (--budget {} is always measured unless --exact)",
+                a.budget
+            );
+        }
     }
     if a.short_side < 32 {
         bail!(
@@ -374,7 +402,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
                 covered_fraction,
                 times: o.times,
             });
-            if let Some(e) = &o.exact {
+            for e in &o.exact {
                 pruning.push(PruneMeasure::new(o, e, &img, gt, &covered)?);
             }
         }
@@ -475,8 +503,11 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             },
         })
         .collect();
-    // The same MHIs rendered exactly: a separate series, beside the pruned (default) renders.
-    for p in &prune_rows {
+    // The same MHIs rendered exactly: a separate series, beside the pruned (scored) renders.
+    for p in prune_rows
+        .iter()
+        .filter(|p| !a.exact && p.budget == a.budget)
+    {
         if let Some(r) = rows.iter().find(|r| {
             r.bin == "all"
                 && r.kind == "all"
@@ -501,6 +532,13 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             meta.triplets
         ),
     )?;
+    if !a.also_budgets.is_empty() {
+        budget_tradeoff(
+            &a.out.join("budget_tradeoff"),
+            &prune_rows,
+            &a.measured_budgets(),
+        )?;
+    }
     let curves = training_curves(&models)?;
     let has_curves = !curves.is_empty();
     if has_curves {

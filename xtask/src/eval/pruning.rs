@@ -1,4 +1,6 @@
-//! The pruned-against-exact table: each MHI rendered within the budget and exactly, per view.
+//! The pruned-against-exact table: each MHI rendered within a budget (--budget and any of
+//! --also-budgets) and exactly, per view; and the figure of speed-up against PSNR change per
+//! budget.
 
 use super::*;
 
@@ -8,6 +10,8 @@ pub(super) struct PruneMeasure {
     method: String,
     normals: usize,
     planes: usize,
+    /// The pruned render's budget, in 8-bit levels.
+    budget: f32,
     /// Largest |pruned − exact| over pixels and channels (colour units).
     max_abs: f32,
     /// Mean |pruned − exact|.
@@ -40,6 +44,14 @@ impl PruneMeasure {
         covered: &[bool],
     ) -> anyhow::Result<Self> {
         let exact = clipped(&e.image);
+        let other;
+        let (pruned, render_ms) = match &e.pruned {
+            Some((image, ms)) => {
+                other = clipped(image);
+                (&other, *ms)
+            }
+            None => (pruned, o.times.render_ms),
+        };
         let (mut max_abs, mut sum, mut over) = (0.0_f32, 0.0_f64, 0usize);
         for (p, q) in pruned.pixels().zip(exact.pixels()) {
             let d = (0..3)
@@ -57,12 +69,13 @@ impl PruneMeasure {
             method: o.method.clone(),
             normals: o.normals,
             planes: o.planes,
+            budget: e.budget,
             max_abs,
             mean_abs: sum / (3 * pruned.width() as usize * pruned.height() as usize).max(1) as f64,
             over_bound: over,
             psnr_pruned: mhi_eval::psnr_masked(pruned, gt, covered)?,
             psnr_exact: mhi_eval::psnr_masked(&exact, gt, covered)?,
-            ms_pruned: o.times.render_ms + o.times.blend_ms,
+            ms_pruned: render_ms + o.times.blend_ms,
             ms_exact: e.render_ms + o.times.blend_ms,
             layers: e.stats.layers,
             layers_pruned: e.stats.layers_pruned,
@@ -81,6 +94,8 @@ pub(super) struct PruneRow {
     pub(super) method: String,
     pub(super) normals: usize,
     pub(super) planes: usize,
+    /// The budget, in 8-bit levels.
+    pub(super) budget: f32,
     pub(super) views: usize,
     pub(super) max_abs: f32,
     pub(super) mean_abs: f64,
@@ -109,19 +124,30 @@ pub(super) struct PruneRow {
 }
 
 pub(super) fn prune_rows(ms_: &[PruneMeasure], boot: &Bootstrap) -> Vec<PruneRow> {
-    let mut keys: Vec<(String, usize, usize)> = Vec::new();
+    // Budgets in increasing order within each method and configuration.
+    let mut keys: Vec<(String, usize, usize, f32)> = Vec::new();
     for m in ms_ {
-        let k = (m.method.clone(), m.normals, m.planes);
+        let k = (m.method.clone(), m.normals, m.planes, m.budget);
         if !keys.contains(&k) {
             keys.push(k);
         }
     }
-    keys.into_iter()
-        .map(|(method, normals, planes)| {
+    let first = |k: &(String, usize, usize, f32)| {
+        keys.iter()
+            .position(|q| (&q.0, q.1, q.2) == (&k.0, k.1, k.2))
+            .unwrap_or(0)
+    };
+    let mut order: Vec<(usize, (String, usize, usize, f32))> =
+        keys.iter().map(|k| (first(k), k.clone())).collect();
+    order.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.3.total_cmp(&b.1.3)));
+    order
+        .into_iter()
+        .map(|(_, (method, normals, planes, budget))| {
             let g: Vec<&PruneMeasure> = ms_
                 .iter()
                 .filter(|m| {
-                    (m.method.as_str(), m.normals, m.planes) == (method.as_str(), normals, planes)
+                    (m.method.as_str(), m.normals, m.planes, m.budget)
+                        == (method.as_str(), normals, planes, budget)
                 })
                 .collect();
             let k = g.len().max(1) as f64;
@@ -161,6 +187,7 @@ pub(super) fn prune_rows(ms_: &[PruneMeasure], boot: &Bootstrap) -> Vec<PruneRow
                 method,
                 normals,
                 planes,
+                budget,
             }
         })
         .collect()
@@ -172,24 +199,31 @@ pub(super) fn prune_markdown(rows: &[PruneRow], a: &EvalArgs) -> String {
 
 ",
     );
-    if a.exact {
-        s += "Not measured: this report was made with `--exact` (every render exact).
-
-";
+    if rows.is_empty() {
+        s += if a.exact {
+            "Not measured: this report was made with `--exact` (every render exact).\n\n"
+        } else {
+            "Not measured: no method here renders an MHI with Soft blending.\n\n"
+        };
         return s;
     }
     let _ = writeln!(
         s,
-        "Every MHI below was rendered both ways per view, exactly and within the error budget of {:.2} 8-bit level(s) per pixel (the default; `--exact` turns it off). |Δ| compares the two renders (not the ground truth); ΔPSNR is the change of covered PSNR against the ground truth (mean, 95 % interval); time is the render (and Soft blend) alone, the median of {} renders each way per view, exact and pruned alternating (so that the shared machine's swings hit both alike), and the speed-up the ratio of the mean times (95 % interval, views resampled); layers and normals are those left out of the whole view, \"composited\" the share of (tile of 32 x 8 pixels, layer) pairs the pruned render still composited (it skips layers tile by tile where they are faint or hidden), \"samples\" the share of (pixel, layer) samples it composited (the transmittance stop skips more within a tile) and \"least possible\" the share an ideal plan that knew every pixel's exact contributions would still have to composite within the same budget (`mhi_render::needed_share` for a view that bounds the blended image alone — the sweep's and the oracle's; `mhi_render::needed_share_per_normal`, higher, for the multi-normal images of a learned MHI, which are kept for its blending network and so are each bounded on their own): its inverse is the most any leaving-out could speed the view up. The report's other tables score the pruned renders.\n",
-        a.budget,
+        "Every MHI below was rendered both ways per view, exactly and within the error budget of its row, in 8-bit levels per pixel (--budget, by default 1: what the report's other tables score, {}; `--also-budgets` adds rows of other budgets, measured the same way). |Δ| compares the two renders (not the ground truth); ΔPSNR is the change of covered PSNR against the ground truth (mean, 95 % interval); time is the render (and Soft blend) alone, the median of {} renders each way per view, exact and pruned alternating (so that the shared machine's swings hit both alike), and the speed-up the ratio of the mean times (95 % interval, views resampled); layers and normals are those left out of the whole view, \"composited\" the share of (tile of 32 x 8 pixels, layer) pairs the pruned render still composited (it skips layers tile by tile where they are faint or hidden), \"samples\" the share of (pixel, layer) samples it composited (the transmittance stop skips more within a tile) and \"least possible\" the share an ideal plan that knew every pixel's exact contributions would still have to composite within the same budget (`mhi_render::needed_share` for a view that bounds the blended image alone — the sweep's and the oracle's; `mhi_render::needed_share_per_normal`, higher, for the multi-normal images of a learned MHI, which are kept for its blending network and so are each bounded on their own): its inverse is the most any leaving-out could speed the view up.\n",
+        if a.exact {
+            "here `--exact`".to_string()
+        } else {
+            format!("here {}", a.budget)
+        },
         super::methods::PAIRED_RUNS
     );
-    s += "| method | views | max \\|Δ\\| | mean \\|Δ\\| | bound | pixels over bound | ΔPSNR dB | exact ms | pruned ms | speed-up | layers left out | normals left out | composited | samples | least possible |\n|---|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+    s += "| method | budget | views | max \\|Δ\\| | mean \\|Δ\\| | bound | pixels over bound | ΔPSNR dB | exact ms | pruned ms | speed-up | layers left out | normals left out | composited | samples | least possible |\n|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     for r in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.5} | {:.6} | {:.5} | {} | {} | {:.1} | {:.1} | {} | {:.1} of {} | {:.2} of {} | {:.0} % | {:.0} % | {:.0} % (≤ {:.2}x) |",
+            "| {} | {} | {} | {:.5} | {:.6} | {:.5} | {} | {} | {:.1} | {:.1} | {} | {:.1} of {} | {:.2} of {} | {:.0} % | {:.0} % | {:.0} % (≤ {:.2}x) |",
             config_label(&r.method, r.normals, r.planes),
+            r.budget,
             r.views,
             r.max_abs,
             r.mean_abs,
@@ -216,4 +250,44 @@ pub(super) fn prune_markdown(rows: &[PruneRow], a: &EvalArgs) -> String {
     }
     s.push('\n');
     s
+}
+
+/// `stem.svg` and `.png`: per MHI of the pruned-against-exact table, the speed-up over the
+/// exact render against the change of covered PSNR, one point per budget (in increasing order
+/// along each line, from the exact render at 1x and 0 dB).
+pub(super) fn budget_tradeoff(
+    stem: &Path,
+    rows: &[PruneRow],
+    budgets: &[f32],
+) -> anyhow::Result<()> {
+    let mut curves: Vec<Curve> = Vec::new();
+    for r in rows {
+        let label = config_label(&r.method, r.normals, r.planes);
+        let Some((delta, _)) = r.delta_psnr else {
+            continue;
+        };
+        match curves.iter_mut().find(|c| c.label == label) {
+            Some(c) => c.points.push((r.speedup, delta)),
+            // Each line starts at the exact render: 1x, no change.
+            None => curves.push(Curve {
+                label,
+                points: vec![(1.0, 0.0), (r.speedup, delta)],
+            }),
+        }
+    }
+    let list: Vec<String> = budgets.iter().map(|b| format!("{b}")).collect();
+    mhi_eval::plot::lines(
+        stem,
+        &curves,
+        &format!(
+            "leaving out: speed-up against PSNR change, exact and budgets {} (8-bit levels)",
+            list.join(", ")
+        ),
+        &mhi_eval::plot::Axes {
+            x: "speed-up over the exact render (x)",
+            y: "covered PSNR change against exact (dB)",
+            log: false,
+        },
+    )?;
+    Ok(())
 }

@@ -579,7 +579,8 @@ fn eval_writes_a_complete_report_and_keeps_an_existing_one() {
         md.contains("#### PSNR")
             && md.contains("#### Covered PSNR")
             && md.contains("Paired comparisons")
-            && md.contains("N × D sweep: sweep"),
+            && md.contains("N × D sweep: sweep")
+            && md.contains("](budget_tradeoff.svg)"),
         "{md}"
     );
     for f in [

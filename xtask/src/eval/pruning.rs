@@ -249,6 +249,9 @@ pub(super) fn prune_markdown(rows: &[PruneRow], a: &EvalArgs) -> String {
         );
     }
     s.push('\n');
+    if !a.also_budgets.is_empty() {
+        s += "![speed-up against PSNR change per budget](budget_tradeoff.svg)\n\nWhat each budget buys and costs: per MHI, the speed-up over its exact render against the change of covered PSNR (means of the rows above), from the exact render (1x, 0 dB) through each budget in increasing order. PNG: [budget_tradeoff.png](budget_tradeoff.png).\n\n";
+    }
     s
 }
 
@@ -274,6 +277,9 @@ pub(super) fn budget_tradeoff(
                 points: vec![(1.0, 0.0), (r.speedup, delta)],
             }),
         }
+    }
+    if curves.is_empty() {
+        return Ok(());
     }
     let list: Vec<String> = budgets.iter().map(|b| format!("{b}")).collect();
     mhi_eval::plot::lines(

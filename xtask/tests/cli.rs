@@ -514,7 +514,7 @@ fn eval_writes_a_complete_report_and_keeps_an_existing_one() {
         let budgets: Vec<f64> = prune_rows
             .iter()
             .filter(|r| r["method"] == method && r["normals"] == normals)
-            .map(|r| r["budget"].as_f64().unwrap())
+            .map(|r| r["budget_levels"].as_f64().unwrap())
             .collect();
         assert_eq!(
             budgets,
@@ -523,7 +523,10 @@ fn eval_writes_a_complete_report_and_keeps_an_existing_one() {
         );
     }
     for r in prune_rows {
-        let (budget, bound) = (r["budget"].as_f64().unwrap(), r["bound"].as_f64().unwrap());
+        let (budget, bound) = (
+            r["budget_levels"].as_f64().unwrap(),
+            r["bound"].as_f64().unwrap(),
+        );
         assert!(bound <= budget / 255.0 + 1e-6, "{r}");
         assert!(r["max_abs"].as_f64().unwrap() <= bound + 1e-5, "{r}");
         assert_eq!(r["over_bound"], 0, "{r}");

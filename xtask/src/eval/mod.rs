@@ -483,7 +483,8 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     mhi_data::write_atomic(
         &a.out.join("pruning.json"),
         &serde_json::to_vec_pretty(&serde_json::json!({
-            "budget": a.prune().budget, "rows": prune_rows, "measurements": pruning,
+            "budget": a.prune().budget, "budget_levels": a.budget, "rows": prune_rows,
+            "measurements": pruning,
         }))?,
     )?;
     mhi_data::write_atomic(&a.out.join("report.csv"), report::csv(&rows).as_bytes())?;
@@ -506,7 +507,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     // The same MHIs rendered exactly: a separate series, beside the pruned (scored) renders.
     for p in prune_rows
         .iter()
-        .filter(|p| !a.exact && p.budget == a.budget)
+        .filter(|p| !a.exact && p.budget_levels == a.budget)
     {
         if let Some(r) = rows.iter().find(|r| {
             r.bin == "all"

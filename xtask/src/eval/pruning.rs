@@ -10,8 +10,8 @@ pub(super) struct PruneMeasure {
     method: String,
     normals: usize,
     planes: usize,
-    /// The pruned render's budget, in 8-bit levels.
-    budget: f32,
+    /// The pruned render's budget, in 8-bit levels (the `bound` is in colour units).
+    budget_levels: f32,
     /// Largest |pruned − exact| over pixels and channels (colour units).
     max_abs: f32,
     /// Mean |pruned − exact|.
@@ -69,7 +69,7 @@ impl PruneMeasure {
             method: o.method.clone(),
             normals: o.normals,
             planes: o.planes,
-            budget: e.budget,
+            budget_levels: e.budget,
             max_abs,
             mean_abs: sum / (3 * pruned.width() as usize * pruned.height() as usize).max(1) as f64,
             over_bound: over,
@@ -94,8 +94,8 @@ pub(super) struct PruneRow {
     pub(super) method: String,
     pub(super) normals: usize,
     pub(super) planes: usize,
-    /// The budget, in 8-bit levels.
-    pub(super) budget: f32,
+    /// The budget, in 8-bit levels (the `bound` is in colour units).
+    pub(super) budget_levels: f32,
     pub(super) views: usize,
     pub(super) max_abs: f32,
     pub(super) mean_abs: f64,
@@ -127,7 +127,7 @@ pub(super) fn prune_rows(ms_: &[PruneMeasure], boot: &Bootstrap) -> Vec<PruneRow
     // Budgets in increasing order within each method and configuration.
     let mut keys: Vec<(String, usize, usize, f32)> = Vec::new();
     for m in ms_ {
-        let k = (m.method.clone(), m.normals, m.planes, m.budget);
+        let k = (m.method.clone(), m.normals, m.planes, m.budget_levels);
         if !keys.contains(&k) {
             keys.push(k);
         }
@@ -146,7 +146,7 @@ pub(super) fn prune_rows(ms_: &[PruneMeasure], boot: &Bootstrap) -> Vec<PruneRow
             let g: Vec<&PruneMeasure> = ms_
                 .iter()
                 .filter(|m| {
-                    (m.method.as_str(), m.normals, m.planes, m.budget)
+                    (m.method.as_str(), m.normals, m.planes, m.budget_levels)
                         == (method.as_str(), normals, planes, budget)
                 })
                 .collect();
@@ -187,7 +187,7 @@ pub(super) fn prune_rows(ms_: &[PruneMeasure], boot: &Bootstrap) -> Vec<PruneRow
                 method,
                 normals,
                 planes,
-                budget,
+                budget_levels: budget,
             }
         })
         .collect()
@@ -217,13 +217,13 @@ pub(super) fn prune_markdown(rows: &[PruneRow], a: &EvalArgs) -> String {
         },
         super::methods::PAIRED_RUNS
     );
-    s += "| method | budget | views | max \\|Δ\\| | mean \\|Δ\\| | bound | pixels over bound | ΔPSNR dB | exact ms | pruned ms | speed-up | layers left out | normals left out | composited | samples | least possible |\n|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+    s += "| method | budget (levels) | views | max \\|Δ\\| | mean \\|Δ\\| | bound | pixels over bound | ΔPSNR dB | exact ms | pruned ms | speed-up | layers left out | normals left out | composited | samples | least possible |\n|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     for r in rows {
         let _ = writeln!(
             s,
             "| {} | {} | {} | {:.5} | {:.6} | {:.5} | {} | {} | {:.1} | {:.1} | {} | {:.1} of {} | {:.2} of {} | {:.0} % | {:.0} % | {:.0} % (≤ {:.2}x) |",
             config_label(&r.method, r.normals, r.planes),
-            r.budget,
+            r.budget_levels,
             r.views,
             r.max_abs,
             r.mean_abs,

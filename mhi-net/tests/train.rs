@@ -1,33 +1,19 @@
 //! Training on a tiny configuration: the loss decreases, nothing becomes NaN, and a run resumed
 //! from a checkpoint ends exactly where an uninterrupted run ends.
 
-use std::path::Path;
+mod common;
 
 use burn::tensor::{Device, Tensor};
-use mhi_data::{SynthConfig, generate};
 use mhi_net::loss::TrainLoss;
 use mhi_net::{TrainConfig, Trainer};
 
-fn data(dir: &Path) {
-    let config = SynthConfig {
-        scenes: 2,
-        frames: 6,
-        width: 48,
-        height: 48,
-        seed: 1,
-        test_fraction: 0.0,
-        ..SynthConfig::default()
-    };
-    generate(&config, dir, &|| {}).unwrap();
+/// Two synthetic scenes of six 48 × 48 frames in a temporary folder.
+fn data() -> tempfile::TempDir {
+    common::synthetic(2, 6, (48, 48), 1)
 }
 
 fn tiny(steps1: usize, steps2: usize) -> TrainConfig {
-    let mut c = TrainConfig::for_normals(2);
-    c.stage1.unet.width = 4;
-    c.stage1.unet.levels = 1;
-    c.stage1.unet.dilations = vec![2];
-    c.blend.width = 4;
-    c.blend.levels = 1;
+    let mut c = common::tiny_networks(2);
     c.width = 16;
     c.height = 16;
     c.planes = 4;
@@ -56,8 +42,7 @@ fn outputs(t: &Trainer) -> Vec<f32> {
 
 #[test]
 fn loss_decreases_and_stays_finite() {
-    let d = tempfile::tempdir().unwrap();
-    data(d.path());
+    let d = data();
     let mut config = tiny(30, 10);
     config.lr = 5e-3;
     let mut t = Trainer::new(
@@ -87,8 +72,7 @@ fn loss_decreases_and_stays_finite() {
 
 #[test]
 fn resume_continues_exactly() {
-    let d = tempfile::tempdir().unwrap();
-    data(d.path());
+    let d = data();
     let device = Device::flex().autodiff();
     // Uninterrupted: 6 steps.
     let mut a = Trainer::new(
@@ -161,8 +145,7 @@ fn resume_continues_exactly() {
 
 #[test]
 fn initial_weights_depend_on_the_seed_alone_and_checkpoints_round_trip() {
-    let d = tempfile::tempdir().unwrap();
-    data(d.path());
+    let d = data();
     let device = Device::flex().autodiff();
     let a = Trainer::new(
         tiny(4, 2),
@@ -209,8 +192,7 @@ fn initial_weights_depend_on_the_seed_alone_and_checkpoints_round_trip() {
 /// non-finite loss.
 #[test]
 fn stiff_training_stays_finite() {
-    let d = tempfile::tempdir().unwrap();
-    data(d.path());
+    let d = data();
     let mut config = tiny(160, 40);
     config.lr = 1e-2;
     config.checkpoint_every = 1000;
@@ -263,8 +245,7 @@ fn stiff_training_stays_finite() {
 /// where the uninterrupted L1 run ends (resuming with L1 + SSIM would not).
 #[test]
 fn an_l1_run_resumes_with_l1() {
-    let d = tempfile::tempdir().unwrap();
-    data(d.path());
+    let d = data();
     let device = Device::flex().autodiff();
     let run = |name: &str, steps: Option<usize>| {
         let mut t = Trainer::new(
@@ -307,8 +288,7 @@ fn an_l1_run_resumes_with_l1() {
 /// drop agree up to it and part after it, and a drop by a factor of 1 changes nothing.
 #[test]
 fn the_learning_rate_drop_changes_the_steps_after_it_only() {
-    let d = tempfile::tempdir().unwrap();
-    data(d.path());
+    let d = data();
     let device = Device::flex().autodiff();
     let run = |name: &str, drop: Option<(usize, f64)>, steps: usize| {
         let mut c = tiny(4, 0);

@@ -12,8 +12,9 @@ over triplets (2000 resamples, seed 0), overall and per rotation bin, and each r
 difference. Reports of different triplets are refused.
 """
 import json
-import random
 import sys
+
+from paired_runs import ci
 
 
 def scores(path, method):
@@ -29,14 +30,6 @@ def scores(path, method):
     if not out:
         sys.exit(f"{path}: no covered PSNR of {method}")
     return out
-
-
-def ci(d):
-    if not d:
-        return "no triplets"
-    rng = random.Random(0)
-    bs = sorted(sum(rng.choice(d) for _ in d) / len(d) for _ in range(2000))
-    return f"{sum(d) / len(d):+.3f} [{bs[50]:+.3f}, {bs[1949]:+.3f}] (n={len(d)})"
 
 
 def main():

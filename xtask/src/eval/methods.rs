@@ -255,35 +255,35 @@ pub(super) fn render_soft(
         )?;
         Ok((r, ms(t0)))
     };
-    let prune = a.prune();
+    // --budget first (its pruned render is the scored image; under --exact the exact one is),
+    // then --also-budgets, each against its own exact render.
+    let mut scored = None;
     let mut checks = Vec::new();
-    let (image, image_ms) = if prune.budget <= 0.0 {
-        let (exact, exact_ms) = go(Prune::NONE)?;
-        (exact.image, exact_ms)
-    } else {
-        let ((exact, exact_ms), (pruned, pruned_ms)) = paired(|| go(Prune::NONE), || go(prune))?;
-        checks.push(ExactCheck {
-            budget: a.budget,
-            pruned: None,
-            needed: mhi_render::needed_share(mhi, &tf.camera, &exact.weights, prune.budget)?,
-            image: exact.image,
-            render_ms: exact_ms,
-            stats: pruned.stats,
-        });
-        (pruned.image, pruned_ms)
-    };
-    for &b in &a.also_budgets {
+    for b in a.measured_budgets() {
         let prune = Prune::with_budget(b / 255.0);
         let ((exact, exact_ms), (pruned, pruned_ms)) = paired(|| go(Prune::NONE), || go(prune))?;
+        let own = if scored.is_none() && a.prune().budget > 0.0 {
+            scored = Some((pruned.image, pruned_ms));
+            None
+        } else {
+            Some((pruned.image, pruned_ms))
+        };
         checks.push(ExactCheck {
             budget: b,
-            pruned: Some((pruned.image, pruned_ms)),
+            pruned: own,
             needed: mhi_render::needed_share(mhi, &tf.camera, &exact.weights, prune.budget)?,
             image: exact.image,
             render_ms: exact_ms,
             stats: pruned.stats,
         });
     }
+    let (image, image_ms) = match scored {
+        Some(s) => s,
+        None => {
+            let (exact, exact_ms) = go(Prune::NONE)?;
+            (exact.image, exact_ms)
+        }
+    };
     Ok((image, image_ms, checks))
 }
 

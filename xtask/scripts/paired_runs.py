@@ -38,14 +38,23 @@ def paired(x, y):
     return [x[k] - y[k] for k in x if k in y]
 
 
-def main():
-    args = sys.argv[1:]
-    opt = {"--method": "mpi", "--baseline": "sweep"}
-    for k in list(opt):
+def options(args, defaults):
+    """Take each `--name value` of `defaults` out of `args` (a list, changed in place); returns
+    the options with the defaults for those not given."""
+    opt = dict(defaults)
+    for k in opt:
         if k in args:
             i = args.index(k)
+            if i + 1 >= len(args):
+                sys.exit(f"{k} needs a value")
             opt[k] = args[i + 1]
             del args[i : i + 2]
+    return opt
+
+
+def main():
+    args = sys.argv[1:]
+    opt = options(args, {"--method": "mpi", "--baseline": "sweep"})
     if len(args) != 2:
         sys.exit(__doc__)
     a, b = args

@@ -14,7 +14,7 @@ difference. Reports of different triplets are refused.
 import json
 import sys
 
-from paired_runs import ci
+from paired_runs import ci, options
 
 
 def scores(path, method):
@@ -34,12 +34,7 @@ def scores(path, method):
 
 def main():
     args = sys.argv[1:]
-    opt = {"--method": "learned", "--baseline": "mpi"}
-    for k in list(opt):
-        if k in args:
-            i = args.index(k)
-            opt[k] = args[i + 1]
-            del args[i : i + 2]
+    opt = options(args, {"--method": "learned", "--baseline": "mpi"})
     if len(args) < 2:
         sys.exit(__doc__)
     m, base = opt["--method"], opt["--baseline"]

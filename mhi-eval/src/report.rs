@@ -94,6 +94,14 @@ pub struct Measurement {
     pub covered_fraction: f64,
     /// Time split.
     pub times: Times,
+    /// Whether `times` was measured here: `false` for a render made by another program and
+    /// scored from its file (`eval --renders`), whose time is unknown (`times` then zero).
+    #[serde(default = "yes")]
+    pub timed: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// One aggregated row of the report.
@@ -143,6 +151,10 @@ pub struct Row {
     pub ms_per_view: f64,
     /// Mean time split.
     pub times: Times,
+    /// Whether every view's time was measured here (see [`Measurement::timed`]); when not,
+    /// `ms_per_view` and `times` mean nothing and the tables show no time.
+    #[serde(default = "yes")]
+    pub timed: bool,
 }
 
 /// A metric of a [`Measurement`], by name: what rows average and comparisons pair.
@@ -306,6 +318,7 @@ pub fn aggregate(ms: &[Measurement], boot: &Bootstrap) -> Vec<Row> {
                 covered_count: v.iter().filter(|m| m.psnr_covered.is_some()).count(),
                 ms_per_view: times.total(),
                 times,
+                timed: v.iter().all(|m| m.timed),
             }
         })
         .collect()
@@ -383,7 +396,9 @@ pub fn compare(ms: &[Measurement], a: &Config, b: &Config, boot: &Bootstrap) -> 
                         count: xa.len(),
                         diff,
                         ci,
-                        within_noise: crate::stats::within_noise(ci),
+                        // One pair has no spread to resample: its "interval" is a point
+                        // and says nothing about noise.
+                        within_noise: xa.len() < 2 || crate::stats::within_noise(ci),
                     });
                 }
             }
@@ -392,7 +407,16 @@ pub fn compare(ms: &[Measurement], a: &Config, b: &Config, boot: &Bootstrap) -> 
     out
 }
 
-/// `report.csv`: one line per row (intervals as `_lo`/`_hi` columns).
+/// A row's time per view for a table cell: `–` when it was not measured here.
+fn ms_cell(r: Option<&Row>) -> String {
+    match r {
+        Some(r) if r.timed => format!("{:.1}", r.ms_per_view),
+        _ => "–".into(),
+    }
+}
+
+/// `report.csv`: one line per row (intervals as `_lo`/`_hi` columns; the time columns empty
+/// for renders not timed here).
 pub fn csv(rows: &[Row]) -> String {
     let mut s = String::from(
         "method,normals,planes,bin,kind,count,psnr_covered,psnr_covered_lo,psnr_covered_hi,ssim_covered,ssim_covered_lo,ssim_covered_hi,lpips_covered,lpips_covered_lo,lpips_covered_hi,covered_fraction,psnr,psnr_lo,psnr_hi,ssim,ssim_lo,ssim_hi,lpips,lpips_lo,lpips_hi,ms_per_view,volume_ms,network_ms,render_ms,blend_ms\n",
@@ -404,7 +428,7 @@ pub fn csv(rows: &[Row]) -> String {
     for r in rows {
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{:.4},{:.4},{},{:.5},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{:.4},{:.4},{},{:.5},{},{},{},{}",
             r.method,
             r.normals,
             r.planes,
@@ -424,11 +448,18 @@ pub fn csv(rows: &[Row]) -> String {
             ci(Some(r.ssim_ci), 5),
             opt(r.lpips, 5),
             ci(r.lpips_ci, 5),
-            r.ms_per_view,
-            r.times.volume_ms,
-            r.times.network_ms,
-            r.times.render_ms,
-            r.times.blend_ms
+            if r.timed {
+                format!(
+                    "{:.3},{:.3},{:.3},{:.3},{:.3}",
+                    r.ms_per_view,
+                    r.times.volume_ms,
+                    r.times.network_ms,
+                    r.times.render_ms,
+                    r.times.blend_ms
+                )
+            } else {
+                ",,,,".into()
+            }
         );
     }
     s
@@ -522,8 +553,7 @@ fn metric_table(s: &mut String, rows: &[Row], metric: Metric, title: &str) {
             let v = find(rows, (m, *n, *d), b, "all").and_then(|r| row_metric(r, metric));
             let _ = write!(s, " {} |", cell(v, metric.precision()));
         }
-        let ms = find(rows, (m, *n, *d), "all", "all").map_or(0.0, |r| r.ms_per_view);
-        let _ = writeln!(s, " {ms:.1} |");
+        let _ = writeln!(s, " {} |", ms_cell(find(rows, (m, *n, *d), "all", "all")));
     }
     s.push('\n');
 }
@@ -632,7 +662,7 @@ pub fn markdown_tables(rows: &[Row], comparisons: &[Comparison]) -> String {
                 match find(rows, (m, *n, *d), "all", "all") {
                     Some(r) => {
                         let p = r.psnr_covered.unwrap_or(f64::NAN);
-                        let _ = write!(s, " {p:.2} / {:.1} |", r.ms_per_view);
+                        let _ = write!(s, " {p:.2} / {} |", ms_cell(Some(r)));
                     }
                     None => s.push_str(" – |"),
                 }
@@ -647,6 +677,14 @@ pub fn markdown_tables(rows: &[Row], comparisons: &[Comparison]) -> String {
     );
     for (m, n, d) in &cfgs {
         if let Some(r) = find(rows, (m, *n, *d), "all", "all") {
+            if !r.timed {
+                let _ = writeln!(
+                    s,
+                    "| {} | not measured here (scored from files) | | | | |",
+                    config_label(m, *n, *d)
+                );
+                continue;
+            }
             let t = r.times;
             let _ = writeln!(
                 s,
@@ -759,6 +797,7 @@ mod tests {
                 render_ms: ms,
                 ..Times::default()
             },
+            timed: true,
         }
     }
 
@@ -834,6 +873,53 @@ mod tests {
         let mut l = get(Metric::Psnr);
         l.metric = Metric::Lpips;
         assert_eq!(l.verdict(), "b N=5 D=8 better");
+    }
+
+    #[test]
+    fn one_pair_is_never_a_win() {
+        let boot = Bootstrap::default();
+        let a = m("a", "0-2", "interpolation", 30.0, 1.0);
+        let b = m("b", "0-2", "interpolation", 20.0, 1.0);
+        let c = compare(&[a, b], &("a".into(), 5, 8), &("b".into(), 5, 8), &boot);
+        assert!(!c.is_empty());
+        for x in &c {
+            assert_eq!(x.count, 1);
+            assert!(x.within_noise, "{x:?}");
+        }
+    }
+
+    #[test]
+    fn renders_not_timed_here_show_no_time() {
+        let boot = Bootstrap::default();
+        let mut ext = m("peer", "0-2", "interpolation", 25.0, 0.0);
+        ext.timed = false;
+        let ms = vec![m("a", "0-2", "interpolation", 20.0, 7.0), ext];
+        let rows = aggregate(&ms, &boot);
+        let row = |method: &str| {
+            rows.iter()
+                .find(|r| r.method == method && r.bin == "all" && r.kind == "all")
+                .unwrap()
+        };
+        assert!(row("a").timed && !row("peer").timed);
+        let md = markdown_tables(&rows, &[]);
+        let line = md
+            .lines()
+            .find(|l| l.starts_with("| peer N=5 D=8 | not measured"))
+            .expect("the time table says the peer was not timed");
+        assert!(!line.contains("0.0"), "{line}");
+        assert!(
+            md.lines()
+                .any(|l| l.starts_with("| a N=5 D=8 |") && l.ends_with(" 7.0 |"))
+        );
+        let c = csv(&rows);
+        let peer = c.lines().find(|l| l.starts_with("peer,")).unwrap();
+        assert!(peer.ends_with(",,,,"), "{peer}");
+        let a = c.lines().find(|l| l.starts_with("a,")).unwrap();
+        assert!(a.ends_with("7.000,0.000,0.000,7.000,0.000"), "{a}");
+        // A report written before the field existed reads as timed.
+        let mut v = serde_json::to_value(&ms[0]).unwrap();
+        v.as_object_mut().unwrap().remove("timed");
+        assert!(serde_json::from_value::<Measurement>(v).unwrap().timed);
     }
 
     #[test]

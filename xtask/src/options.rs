@@ -382,6 +382,75 @@ pub struct EvalArgs {
     /// budget by what it buys and costs. The scored images stay those within --budget.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub also_budgets: Vec<f32>,
+    /// Also score renders made by another program (a peer, a baseline in another language)
+    /// under this protocol — the same triplets, covered mask, metrics and paired intervals — as
+    /// NAME=DIR. DIR holds one PNG per triplet at the evaluation size, named by the timestamps
+    /// of its reference, source and target frames: `SEQUENCE_REF_SRC_TGT.png` (a `/` in a
+    /// qualified sequence name becomes `-`). Save the triplets with `cargo xtask triplets
+    /// --save`, render them with the other program, and pass the same file as --index. Their
+    /// time is not measured here: the report shows none and error_vs_time.png leaves them
+    /// out. Repeat for several; pair them with --compare.
+    #[arg(long = "renders", value_parser = parse_renders)]
+    pub renders: Vec<(String, PathBuf)>,
+    /// Also pair two methods of the report as A,B (method names, e.g. `proto,proto-sweep` for
+    /// two --renders, or `learned,nearest`): every configuration of A against every one of B,
+    /// a − b with paired intervals. Repeat for several pairs.
+    #[arg(long = "compare", value_parser = parse_compare)]
+    pub compare: Vec<(String, String)>,
+}
+
+/// The methods `eval` computes itself: names a --renders method may not take.
+pub const BUILT_IN_METHODS: [&str; 8] = [
+    "learned", "soft", "hard", "avg", "mpi", "sweep", "oracle", "nearest",
+];
+
+/// A method name for --renders and --compare: letters, digits, `-`, `_` and `.`.
+fn parse_method_name(s: &str, option: &str) -> Result<String, String> {
+    let s = s.trim();
+    if s.is_empty() {
+        return Err(format!("{option}: the method name is empty"));
+    }
+    if let Some(c) = s
+        .chars()
+        .find(|c| !(c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.')))
+    {
+        return Err(format!(
+            "{option}: method name {s:?} has {c:?}; use letters, digits, '-', '_' and '.'"
+        ));
+    }
+    Ok(s.to_string())
+}
+
+/// `--renders NAME=DIR`.
+fn parse_renders(s: &str) -> Result<(String, PathBuf), String> {
+    let (name, dir) = s
+        .split_once('=')
+        .ok_or_else(|| format!("{s:?} must look like NAME=DIR (e.g. proto=out/proto-renders)"))?;
+    let name = parse_method_name(name, "--renders")?;
+    if BUILT_IN_METHODS.contains(&name.as_str()) {
+        return Err(format!(
+            "{name:?} is a method eval computes itself; give the renders another name"
+        ));
+    }
+    if dir.trim().is_empty() {
+        return Err(format!("{s:?}: the folder after '=' is empty"));
+    }
+    Ok((name, PathBuf::from(dir)))
+}
+
+/// `--compare A,B`.
+fn parse_compare(s: &str) -> Result<(String, String), String> {
+    let (a, b) = s
+        .split_once(',')
+        .ok_or_else(|| format!("{s:?} must look like A,B (two method names)"))?;
+    let (a, b) = (
+        parse_method_name(a, "--compare")?,
+        parse_method_name(b, "--compare")?,
+    );
+    if a == b {
+        return Err(format!("{s:?} compares {a} with itself"));
+    }
+    Ok((a, b))
 }
 
 /// A number in (0, 1]: `give` says what to write when `s` is not a number, `why` why the

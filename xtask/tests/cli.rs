@@ -58,6 +58,22 @@ fn first_frame(root: &Path) -> PathBuf {
     v[0].clone()
 }
 
+/// `triplets --per-sequence 2 --save DIR/index.json` on `data`; the index's path.
+fn save_index(data: &str, dir: &Path) -> PathBuf {
+    let index = dir.join("index.json");
+    let o = xtask(&[
+        "triplets",
+        "--data",
+        data,
+        "--per-sequence",
+        "2",
+        "--save",
+        index.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    index
+}
+
 fn sweep_args<'a>(root: &'a str, out: &'a str) -> Vec<&'a str> {
     vec![
         "sweep", "--data", root, "--ref", "0", "--src", "2", "--target", "1", "--size", "32x24",
@@ -765,17 +781,7 @@ fn eval_refuses_unknown_methods_tiny_sizes_and_stale_or_degenerate_indices() {
     }
     assert!(!out.exists(), "a refused eval leaves no output folder");
     // An index with a degenerate triplet, then one whose frames changed.
-    let index = d.path().join("index.json");
-    let o = xtask(&[
-        "triplets",
-        "--data",
-        data,
-        "--per-sequence",
-        "2",
-        "--save",
-        index.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let index = save_index(data, d.path());
     let good = std::fs::read_to_string(&index).unwrap();
     let mut j: serde_json::Value = serde_json::from_str(&good).unwrap();
     let r = j["triplets"][0]["reference"].clone();
@@ -1174,4 +1180,168 @@ fn the_sweep_row_is_what_an_untrained_residual_model_renders() {
     );
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert!(md.contains("2 px at 32"), "{md}");
+}
+
+/// `eval --renders` scores another program's renders under the same protocol: the target frame
+/// itself scores as well as PSNR can say, a black picture far worse, and --compare pairs them;
+/// a missing render, one of the wrong size, a folder that does not exist, a name eval uses
+/// itself and a --compare name that is nowhere are refused before any work, naming what is
+/// wrong.
+#[test]
+fn eval_scores_renders_from_files_and_refuses_incomplete_ones() {
+    let d = tempfile::tempdir().unwrap();
+    let config = SynthConfig {
+        scenes: 2,
+        frames: 4,
+        width: 32,
+        height: 32,
+        seed: 5,
+        test_fraction: 0.5,
+        ..SynthConfig::default()
+    };
+    generate(&config, d.path(), &|| {}).unwrap();
+    let data = d.path().to_str().unwrap();
+    let index = save_index(data, d.path());
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&index).unwrap()).unwrap();
+    let (truth, black, small) = (
+        d.path().join("truth"),
+        d.path().join("black"),
+        d.path().join("small"),
+    );
+    for dir in [&truth, &black, &small] {
+        std::fs::create_dir(dir).unwrap();
+    }
+    let trips = j["triplets"].as_array().unwrap();
+    assert!(trips.len() >= 2);
+    for t in trips {
+        let seq = t["sequence"].as_str().unwrap();
+        let ts: Vec<u64> = t["timestamps"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap())
+            .collect();
+        let name = format!("{seq}_{}_{}_{}.png", ts[0], ts[1], ts[2]);
+        let target = d
+            .path()
+            .join("test")
+            .join(seq)
+            .join(format!("{}.png", ts[2]));
+        std::fs::copy(&target, truth.join(&name)).unwrap();
+        image::RgbImage::new(32, 32)
+            .save(black.join(&name))
+            .unwrap();
+        image::RgbImage::new(32, 16)
+            .save(small.join(&name))
+            .unwrap();
+    }
+    let out = d.path().join("report");
+    let args = |extra: &[String]| -> Vec<String> {
+        let mut v: Vec<String> = [
+            "eval",
+            "--data",
+            data,
+            "--index",
+            index.to_str().unwrap(),
+            "--methods",
+            "nearest",
+            "--size",
+            "32x32",
+            "--orbit-frames",
+            "0",
+            "--samples",
+            "1",
+            "--out",
+            out.to_str().unwrap(),
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        v.extend(extra.iter().cloned());
+        v
+    };
+    let arg = |s: &str| s.to_string();
+    let renders =
+        |name: &str, dir: &Path| vec![arg("--renders"), format!("{name}={}", dir.display())];
+    let run = |v: Vec<String>| xtask(&v.iter().map(String::as_str).collect::<Vec<_>>());
+    let fail = |v: Vec<String>| fails(&v.iter().map(String::as_str).collect::<Vec<_>>());
+
+    // Refused up front.
+    let missing = d.path().join("missing");
+    let err = fail(args(&renders("peer", &missing)));
+    assert!(
+        err.contains("peer") && err.contains("no such folder"),
+        "{err}"
+    );
+    let err = fail(args(&renders("sweep", &truth)));
+    assert!(
+        err.contains("\"sweep\"") && err.contains("another name"),
+        "{err}"
+    );
+    let err = fail(args(&renders("a b", &truth)));
+    assert!(err.contains("letters, digits"), "{err}");
+    let one = trips[0]["timestamps"][2].as_u64().unwrap();
+    let gone = std::fs::read_dir(&black)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.to_string_lossy().ends_with(&format!("_{one}.png")))
+        .unwrap();
+    let kept = std::fs::read(&gone).unwrap();
+    std::fs::remove_file(&gone).unwrap();
+    let err = fail(args(&renders("black", &black)));
+    assert!(
+        err.contains("1 of") && err.contains(gone.file_name().unwrap().to_str().unwrap()),
+        "{err}"
+    );
+    std::fs::write(&gone, kept).unwrap();
+    let mut v = renders("truth", &truth);
+    v.extend([arg("--compare"), arg("truth,elsewhere")]);
+    let err = fail(args(&v));
+    assert!(
+        err.contains("\"elsewhere\"") && err.contains("--renders"),
+        "{err}"
+    );
+    assert!(!out.exists(), "a refused eval leaves no output folder");
+    let err = fail(args(&renders("small", &small)));
+    assert!(err.contains("32x16") && err.contains("32x32"), "{err}");
+
+    // Scored: the truth as well as PSNR can say, black far below, and paired.
+    let mut v = renders("truth", &truth);
+    v.extend(renders("black", &black));
+    v.extend([arg("--compare"), arg("truth,black"), arg("--overwrite")]);
+    let o = run(args(&v));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let row = |m: &str| {
+        r["rows"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|x| x["method"] == m && x["bin"] == "all" && x["kind"] == "all")
+            .unwrap_or_else(|| panic!("no row of {m}"))
+            .clone()
+    };
+    let (t, b) = (row("truth"), row("black"));
+    assert!(t["psnr_covered"].as_f64().unwrap() > 60.0, "{t}");
+    assert!(b["psnr_covered"].as_f64().unwrap() < 20.0, "{b}");
+    assert_eq!(t["timed"], false);
+    assert_eq!(row("nearest")["timed"], true);
+    let cmp = r["comparisons"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| {
+            c["a"] == "truth"
+                && c["b"] == "black"
+                && c["metric"] == "psnr_covered"
+                && c["bin"] == "all"
+                && c["kind"] == "all"
+        })
+        .expect("--compare truth,black is in the report")
+        .clone();
+    assert!(cmp["diff"].as_f64().unwrap() > 30.0, "{cmp}");
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("| truth | not measured here"), "{md}");
 }

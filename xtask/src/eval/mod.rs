@@ -124,6 +124,8 @@ struct Meta {
     date: String,
     /// The largest rotation of the orbit GIF's cameras from the reference, in degrees.
     orbit_rotation_deg: Option<f64>,
+    /// Renders scored from files (`--renders NAME=DIR`): name and folder.
+    renders: Vec<(String, String)>,
 }
 
 #[derive(Serialize)]
@@ -213,6 +215,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             ),
         }
     }
+    check_renders(a, &ds, &index)?;
     let cpu = Device::flex();
     let mut models = Vec::new();
     let mut runs = a.runs.clone();
@@ -355,7 +358,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         if ti == 0 {
             // Warm-up: the first view of every method pays for allocations and lazy
             // initialisation that a user rendering many views pays once.
-            if ctx.run_methods(&rf, &sf, &tf, seq)?.is_empty() {
+            if ctx.run_methods(&rf, &sf, &tf, seq)?.is_empty() && a.renders.is_empty() {
                 bail!(
                     "none of --methods {:?} applies here: learned, soft, hard and avg need a --run with N > 1, mpi a --run with N = 1, oracle synthetic scenes",
                     a.methods
@@ -363,7 +366,17 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             }
             pb.inc(1);
         }
-        let outputs = ctx.run_methods(&rf, &sf, &tf, seq)?;
+        let mut outputs = ctx.run_methods(&rf, &sf, &tf, seq)?;
+        for (name, dir) in &a.renders {
+            outputs.push(Output {
+                method: name.clone(),
+                normals: 0,
+                planes: 0,
+                image: load_render(&dir.join(render_file_name(seq, t)), size)?,
+                times: Times::default(),
+                exact: Vec::new(),
+            });
+        }
         let gt = &tf.image;
         let covered = mhi_eval::covered_mask(&rf.camera, &tf.camera, a.range.far);
         let covered_fraction = mhi_eval::coverage::fraction(&covered);
@@ -401,6 +414,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
                 lpips_covered,
                 covered_fraction,
                 times: o.times,
+                timed: !a.renders.iter().any(|(n, _)| *n == o.method),
             });
             for e in &o.exact {
                 pruning.push(PruneMeasure::new(o, e, &img, gt, &covered)?);
@@ -426,7 +440,27 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
 
     let boot = Bootstrap::default().with_seed(a.bootstrap_seed);
     let rows = report::aggregate(&measurements, &boot);
-    let comparisons: Vec<Comparison> = comparison_pairs(&report::configs(&rows))
+    let configs = report::configs(&rows);
+    let mut pairs = comparison_pairs(&configs);
+    for (x, y) in &a.compare {
+        for cx in configs.iter().filter(|c| c.0 == *x) {
+            for cy in configs.iter().filter(|c| c.0 == *y) {
+                if !pairs.contains(&(cx.clone(), cy.clone())) {
+                    pairs.push((cx.clone(), cy.clone()));
+                }
+            }
+        }
+    }
+    for (x, y) in &a.compare {
+        for m in [x, y] {
+            if !configs.iter().any(|c| c.0 == *m) {
+                eprintln!(
+                    "warning: --compare {x},{y}: {m} scored no view here (a method that needs a --run, or oracle on real photos?)"
+                );
+            }
+        }
+    }
+    let comparisons: Vec<Comparison> = pairs
         .iter()
         .flat_map(|(x, y)| report::compare(&measurements, x, y, &boot))
         .collect();
@@ -471,6 +505,11 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         threads: rayon::current_num_threads(),
         date: crate::date(),
         orbit_rotation_deg: orbit_rotation,
+        renders: a
+            .renders
+            .iter()
+            .map(|(n, d)| (n.clone(), d.display().to_string()))
+            .collect(),
     };
     let json = serde_json::to_vec_pretty(&ReportJson {
         meta: &meta,
@@ -492,7 +531,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     // Figures, from the rows.
     let mut points: Vec<TimePoint> = rows
         .iter()
-        .filter(|r| r.bin == "all" && r.kind == "all")
+        .filter(|r| r.bin == "all" && r.kind == "all" && r.timed)
         .map(|r| TimePoint {
             label: config_label(&r.method, r.normals, r.planes),
             ms: r.ms_per_view,
@@ -563,6 +602,90 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     print_summary(&rows, &comparisons);
     println!("report: {}", a.out.join("report.md").display());
     Ok(())
+}
+
+/// The file of a triplet's render in a `--renders` folder: the sequence (a `/` of a qualified
+/// name as `-`) and the timestamps of the reference, source and target frames.
+pub(crate) fn render_file_name(seq: &mhi_data::Sequence, t: &mhi_data::Triplet) -> String {
+    let ts = t
+        .timestamps
+        .unwrap_or_else(|| [t.reference, t.source, t.target].map(|i| seq.frames[i].row.timestamp));
+    format!(
+        "{}_{}_{}_{}.png",
+        t.sequence.replace('/', "-"),
+        ts[0],
+        ts[1],
+        ts[2]
+    )
+}
+
+/// Before any work: every `--renders` folder holds a file for every triplet, and every
+/// `--compare` name is a method this evaluation scores.
+fn check_renders(a: &EvalArgs, ds: &Dataset, index: &TripletIndex) -> anyhow::Result<()> {
+    for (k, (name, dir)) in a.renders.iter().enumerate() {
+        if a.renders[..k].iter().any(|(n, _)| n == name) {
+            bail!("--renders: the name {name:?} is given twice");
+        }
+        if !dir.is_dir() {
+            bail!("--renders {name}={}: no such folder", dir.display());
+        }
+        let mut missing = Vec::new();
+        for t in &index.triplets {
+            let seq = ds
+                .sequences
+                .iter()
+                .find(|s| s.name == t.sequence)
+                .context("triplet sequence vanished")?;
+            let f = dir.join(render_file_name(seq, t));
+            if !f.is_file() {
+                missing.push(f);
+            }
+        }
+        if let Some(first) = missing.first() {
+            bail!(
+                "--renders {name}={}: {} of {} triplets have no render, e.g. {} (a render is named SEQUENCE_REF_SRC_TGT.png by its frames' timestamps; render the triplets of `cargo xtask triplets --save FILE` and pass FILE as --index)",
+                dir.display(),
+                missing.len(),
+                index.triplets.len(),
+                first.display()
+            );
+        }
+    }
+    let known = |m: &str| {
+        a.renders.iter().any(|(n, _)| n == m)
+            || a.methods
+                .iter()
+                .any(|x| clap::ValueEnum::to_possible_value(x).is_some_and(|v| v.get_name() == m))
+    };
+    for (x, y) in &a.compare {
+        for m in [x, y] {
+            if !known(m) {
+                bail!("--compare {x},{y}: {m:?} is neither one of --methods nor a --renders name");
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A render of `--renders`, checked to be at the evaluation size.
+fn load_render(path: &Path, size: (u32, u32)) -> anyhow::Result<Rgb32FImage> {
+    let img = image::open(path)
+        .with_context(|| format!("--renders: cannot read the render {}", path.display()))?
+        .to_rgb32f();
+    if img.dimensions() != size {
+        bail!(
+            "--renders: {} is {}x{}, the evaluation size of its sequence is {}x{} (render at that size, or give eval the --size / --short-side the renders were made at)",
+            path.display(),
+            img.width(),
+            img.height(),
+            size.0,
+            size.1
+        );
+    }
+    if let Some(v) = img.as_raw().iter().find(|v| !v.is_finite()) {
+        bail!("--renders: {} holds a non-finite value {v}", path.display());
+    }
+    Ok(img)
 }
 
 fn size_label(sizes: &[(u32, u32)]) -> String {
@@ -763,6 +886,12 @@ fn markdown(
             }
         );
         let _ = writeln!(s, "  (run record: {r})");
+    }
+    for (name, dir) in &meta.renders {
+        let _ = writeln!(
+            s,
+            "- `{name}`: renders made by another program, read from `{dir}` (one PNG per triplet) and scored here like every method; their time was not measured here"
+        );
     }
     s.push('\n');
     s.push_str(&report::markdown_tables(rows, comparisons));

@@ -399,10 +399,16 @@ pub struct EvalArgs {
     pub compare: Vec<(String, String)>,
 }
 
-/// The methods `eval` computes itself: names a --renders method may not take.
-pub const BUILT_IN_METHODS: [&str; 8] = [
-    "learned", "soft", "hard", "avg", "mpi", "sweep", "oracle", "nearest",
-];
+impl Method {
+    /// Whether `name` is the command-line name of a method `eval` computes itself (a name a
+    /// --renders method may not take).
+    pub fn is_name(name: &str) -> bool {
+        <Method as clap::ValueEnum>::value_variants()
+            .iter()
+            .filter_map(clap::ValueEnum::to_possible_value)
+            .any(|v| v.get_name() == name)
+    }
+}
 
 /// A method name for --renders and --compare: letters, digits, `-`, `_` and `.`.
 fn parse_method_name(s: &str, option: &str) -> Result<String, String> {
@@ -427,7 +433,7 @@ fn parse_renders(s: &str) -> Result<(String, PathBuf), String> {
         .split_once('=')
         .ok_or_else(|| format!("{s:?} must look like NAME=DIR (e.g. proto=out/proto-renders)"))?;
     let name = parse_method_name(name, "--renders")?;
-    if BUILT_IN_METHODS.contains(&name.as_str()) {
+    if Method::is_name(&name) {
         return Err(format!(
             "{name:?} is a method eval computes itself; give the renders another name"
         ));

@@ -10,7 +10,7 @@
 # trains it for MINUTES and tests it on re10k-3 with its own `test` mode. Its "sweep" column is
 # then the prior it was given, so "learned - sweep" is the prototype's gain over that prior.
 #
-#   bash xtask/scripts/proto_on_prior.sh PEER_DIR DATA_DIR OUT [BOX TAU INVALID MINUTES COLOUR]
+#   bash xtask/scripts/proto_on_prior.sh PEER_DIR DATA_DIR OUT [BOX TAU INVALID MINUTES COLOUR SEED]
 #   bash xtask/scripts/proto_on_prior.sh ../shared/peer ../shared/data/real out/s28-proto-our-prior
 #
 # COLOUR=1 (session 35's probe) also gives each plane a colour of its own: the U-Net's head
@@ -19,13 +19,15 @@
 # where the source sees the plane, clamped to [0, 1]. Untrained, m = 0 and every colour is the
 # reference's: the model is still exactly the sweep (the prototype's own identity check).
 #
+# SEED (default 0, the prototype's own) is its --seed: initialisation and triplet sampling.
+#
 # Needs python3 with torch. Writes OUT/train.log, OUT/test.log, OUT/test.json, OUT/ckpt.pt.
 set -euo pipefail
 if [ $# -lt 3 ]; then
   sed -n 2,16p "$0" >&2
   exit 2
 fi
-peer=$1 data=$2 out=$3 box=${4:-19} tau=${5:-0.005} invalid=${6:-0.25} minutes=${7:-44} colour=${8:-0}
+peer=$1 data=$2 out=$3 box=${4:-19} tau=${5:-0.005} invalid=${6:-0.25} minutes=${7:-44} colour=${8:-0} seed=${9:-0}
 for f in torch_refine.py torch_sweep.py; do
   [ -f "$peer/$f" ] || { echo "error: $peer/$f not found (PEER_DIR must hold the prototype)" >&2; exit 1; }
 done
@@ -72,7 +74,7 @@ fi
 diff -u "$peer/torch_refine.py" "$out/src/torch_refine.py" > "$out/prior.diff" || true
 diff -u "$peer/torch_sweep.py" "$out/src/torch_sweep.py" >> "$out/prior.diff" || true
 python3 "$out/src/torch_refine.py" train --train_roots "$data/llff-6:train" "$data/strecha-2:train" \
-  --val_root "$data/llff-6:train" --val_seq room --minutes "$minutes" --ckpt "$out/ckpt.pt" \
+  --val_root "$data/llff-6:train" --val_seq room --minutes "$minutes" --seed "$seed" --ckpt "$out/ckpt.pt" \
   2>&1 | tee "$out/train.log"
 python3 "$out/src/torch_refine.py" test --test_root "$data/re10k-3:test" --ckpt "$out/ckpt.pt" \
   --out "$out/test.json" 2>&1 | tee "$out/test.log"

@@ -336,13 +336,17 @@ pub(crate) fn normals_to_drop(
     let mut dropped = vec![0.0_f32; px];
     let mut dropped_max = 0.0_f32;
     if share > 0.0 && n > 1 {
-        let max_of = |i: usize| {
-            weights[i * px..(i + 1) * px]
-                .iter()
-                .fold(0.0_f32, |m, v| m.max(*v))
-        };
+        // Each normal's largest weight once (the sort compared them over the whole image at
+        // every comparison: 0.2–0.3 ms of a 448 × 256 view).
+        let max_of: Vec<f32> = (0..n)
+            .map(|i| {
+                weights[i * px..(i + 1) * px]
+                    .iter()
+                    .fold(0.0_f32, |m, v| m.max(*v))
+            })
+            .collect();
         let mut order: Vec<usize> = (0..n).collect();
-        order.sort_by(|a, b| max_of(*a).total_cmp(&max_of(*b)));
+        order.sort_by(|a, b| max_of[*a].total_cmp(&max_of[*b]));
         for &i in &order[..n - 1] {
             let w = &weights[i * px..(i + 1) * px];
             let new_max = dropped

@@ -1073,16 +1073,21 @@ impl RowContext<'_> {
         }
         // Fetch layer `(i, j)`'s texels (and its colour, per layer) where the last layer's runs
         // read, `seen` widened by a row: a band reads a few short rows of each of N · D layers,
-        // too short for the hardware to see a stream in.
-        let prefetch_layer = |i: usize, j: usize, seen: (usize, usize)| {
-            if seen.0 < seen.1 {
-                let (from, to) = (seen.0, seen.1 + rw + 2);
-                prefetch(mhi.alpha_layer(i, j), from, to);
-                if let LayerColor::PerLayer(_) = mhi.color() {
-                    prefetch(color_of(i * d + j), 3 * from, 3 * to);
+        // too short for the hardware to see a stream in. A macro, not a closure: whether LLVM
+        // inlined the closure changed with edits elsewhere in the crate, and out of line it
+        // made exact renders about 11 % slower (`docs/SPEED.md`, session 41).
+        macro_rules! prefetch_layer {
+            ($i:expr, $j:expr, $seen:expr) => {{
+                let (i, j, seen): (usize, usize, (usize, usize)) = ($i, $j, $seen);
+                if seen.0 < seen.1 {
+                    let (from, to) = (seen.0, seen.1 + rw + 2);
+                    prefetch(mhi.alpha_layer(i, j), from, to);
+                    if let LayerColor::PerLayer(_) = mhi.color() {
+                        prefetch(color_of(i * d + j), 3 * from, 3 * to);
+                    }
                 }
-            }
-        };
+            }};
+        }
         let mut samples = 0_usize;
         let band = &tiles[(y0 / TILE_H) * tiles_x..][..tiles_x];
         let tile_stop: Vec<f32> = band.iter().map(stop_of).collect();
@@ -1136,7 +1141,7 @@ impl RowContext<'_> {
                     let (alpha1, alpha2) = (mhi.alpha_layer(i, j), mhi.alpha_layer(i, j2));
                     let (color1, color2) = (color_of(i * d + j), color_of(i * d + j2));
                     for jn in j2.saturating_sub(2)..j2 {
-                        prefetch_layer(i, jn, seen);
+                        prefetch_layer!(i, jn, seen);
                     }
                     seen = (usize::MAX, 0);
                     for row in &mut band_rows {
@@ -1189,7 +1194,7 @@ impl RowContext<'_> {
                 let color = color_of(i * d + j);
                 // While this layer is composited, the next one's texels are fetched.
                 if j > 0 {
-                    prefetch_layer(i, j - 1, seen);
+                    prefetch_layer!(i, j - 1, seen);
                 }
                 seen = (usize::MAX, 0);
                 for row in &mut band_rows {

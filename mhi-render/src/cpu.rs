@@ -904,6 +904,9 @@ impl RowContext<'_> {
     /// rounding instead of two, a few units in the last place apart from the baseline's; the
     /// renders of the bench's scenes 6–9 % faster). Rust never fuses on its own, so each
     /// compilation is the composite of every sample in its own rounding, to the bit (tested).
+    /// Each is also specialised on whether the render leaves anything out (`STOP`): an exact
+    /// render's loop then has no stop tests, a pruned render's no pairs of layers, and neither
+    /// shares its registers with the other's code.
     fn band(&self, y0: usize, out: &mut [f32], mni: &mut [&mut [f32]]) -> usize {
         #[cfg(target_arch = "x86_64")]
         if self.rows == Rows::Fastest
@@ -912,15 +915,30 @@ impl RowContext<'_> {
         {
             // SAFETY: `band_avx2` only needs AVX2 and FMA, which the CPU was just found to have.
             #[allow(unsafe_code)]
-            return unsafe { self.band_avx2(y0, out, mni) };
+            return unsafe {
+                if self.eps > 0.0 {
+                    self.band_avx2::<true>(y0, out, mni)
+                } else {
+                    self.band_avx2::<false>(y0, out, mni)
+                }
+            };
         }
-        self.band_generic::<false>(y0, out, mni)
+        if self.eps > 0.0 {
+            self.band_generic::<false, true>(y0, out, mni)
+        } else {
+            self.band_generic::<false, false>(y0, out, mni)
+        }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    fn band_avx2(&self, y0: usize, out: &mut [f32], mni: &mut [&mut [f32]]) -> usize {
-        self.band_generic::<true>(y0, out, mni)
+    fn band_avx2<const STOP: bool>(
+        &self,
+        y0: usize,
+        out: &mut [f32],
+        mni: &mut [&mut [f32]],
+    ) -> usize {
+        self.band_generic::<true, STOP>(y0, out, mni)
     }
 
     /// Colour of layer `k`, read straight from the images' RGB rows (three floats per texel):
@@ -934,7 +952,7 @@ impl RowContext<'_> {
     }
 
     #[inline(always)]
-    fn band_generic<const FUSED: bool>(
+    fn band_generic<const FUSED: bool, const STOP: bool>(
         &self,
         y0: usize,
         out: &mut [f32],
@@ -975,7 +993,8 @@ impl RowContext<'_> {
         let (mut sxs2, mut sys2) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
         let (mut fxs2, mut fys2) = (vec![0.0_f32; tw], vec![0.0_f32; tw]);
         let mut idx2 = vec![0_u32; tw];
-        let stop = eps > 0.0;
+        let stop = STOP;
+        debug_assert_eq!(STOP, eps > 0.0);
         // Without the multi-normal images only the blend is bounded: Σ_i w_i · stop_i within
         // the tile's stop share. Each kept normal spends an equal part of it, so a pixel's
         // normal stops at `share / (kept · w_i)` (a light normal stops early, a heavy one

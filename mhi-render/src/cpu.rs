@@ -139,8 +139,9 @@ pub struct RenderStats {
     #[serde(default)]
     pub samples: f32,
     /// The bound the render guarantees: the largest change any pixel can see from what was
-    /// left out (skipped alpha mass of the worst normal + dropped blend weight of the worst
-    /// pixel + the transmittance at which compositing stops), at most the budget.
+    /// left out (skipped alpha mass of the worst normal, or, bounding the blend alone, of every
+    /// normal weighted by its blend weight + dropped blend weight of the worst pixel + the
+    /// transmittance at which compositing stops), at most the budget.
     pub bound: f32,
 }
 
@@ -404,8 +405,9 @@ pub const TILE_H: usize = 8;
 struct TilePlan {
     /// Per normal, the layers to composite, near to far (empty for a dropped normal).
     layers: Vec<Vec<usize>>,
-    /// The largest summed alpha any kept normal leaves out in this tile (an upper bound of the
-    /// change to any of its pixels).
+    /// An upper bound of the change to any of its pixels from the layers left out here: the
+    /// largest summed alpha any kept normal leaves out or, in a blend whose multi-normal images
+    /// are not kept, that of every kept normal weighted by its largest blend weight here.
     mass: f32,
     /// Visible layers of the kept normals (what an exact render composites here).
     visible: usize,
@@ -487,13 +489,15 @@ fn footprint_range(
 /// tile skips a layer while the summed `hi · T` stays within `share`: layers skipped everywhere
 /// (`global_skip`) always, the others when they fit. Faint layers in front and hidden layers
 /// behind an opaque surface both go. The far layer is always kept; with `share = 0` nothing is
-/// skipped.
+/// skipped. With `tile_weights` (each normal's largest blend weight per tile, for a render that
+/// bounds the blend alone) a normal that weighs little in a tile may leave out more there.
 fn tile_plans(
     mhi: &Mhi,
     hs: &[Option<[f32; 9]>],
     active: &[bool],
     global_skip: &[Vec<bool>],
     share: f32,
+    tile_weights: Option<&[f32]>,
     (tw, th): (usize, usize),
 ) -> Vec<TilePlan> {
     let (n, d) = (mhi.n(), mhi.d());
@@ -528,14 +532,38 @@ fn tile_plans(
                 mass: 0.0,
                 visible: 0,
             };
+            // The layers skipped everywhere count first, at their largest alpha here.
+            let global: Vec<f32> = (0..n)
+                .map(|i| {
+                    (1..d)
+                        .filter(|j| active[i] && global_skip[i][*j])
+                        .filter_map(|j| ranges[i * d + j].get(k).map(|r| r.1))
+                        .sum()
+                })
+                .collect();
+            // Each normal's own budget for the layers it leaves out here. Blended (the
+            // multi-normal images not kept), a pixel changes by Σ_i w_i · mass_i ≤ Σ_i W_i ·
+            // mass_i, W_i the normal's largest weight in the tile: what the global skips leave
+            // of the share goes to the kept normals in equal parts, each `rest / (kept · W_i)`
+            // in its own colour units (a light normal leaves out more). Otherwise, or when the
+            // global skips leave nothing, every normal gets the whole share (Σ_i w_i · mass_i ≤
+            // max_i mass_i).
+            let kept_normals = active.iter().filter(|a| **a).count();
+            let w_of = |i: usize| tile_weights.map(|tw| tw[k * n + i]);
+            let rest = share
+                - (0..n)
+                    .filter(|i| active[*i])
+                    .map(|i| w_of(i).unwrap_or(0.0) * global[i])
+                    .sum::<f32>();
+            let weighted = tile_weights.is_some() && rest > 0.0;
+            let budget_of = |i: usize| match w_of(i) {
+                Some(w) if weighted => global[i] + share_of(rest, kept_normals, w),
+                _ => share,
+            };
+            let mut weighted_mass = 0.0_f32;
             for i in (0..n).filter(|i| active[*i]) {
-                // The layers skipped everywhere count first, at their largest alpha here.
-                let mut mass = 0.0_f32;
-                for j in (1..d).filter(|j| global_skip[i][*j]) {
-                    if let Some(r) = ranges[i * d + j].get(k) {
-                        mass += r.1;
-                    }
-                }
+                let budget = budget_of(i);
+                let mut mass = global[i];
                 let mut t_up = 1.0_f32;
                 let mut kept = Vec::with_capacity(d);
                 for j in (0..d).rev() {
@@ -552,7 +580,7 @@ fn tile_plans(
                     }
                     let (lo, hi) = ranges[i * d + j][k];
                     let cost = hi * t_up;
-                    if mass + cost <= share {
+                    if mass + cost <= budget {
                         mass += cost;
                     } else {
                         kept.push(j);
@@ -560,9 +588,32 @@ fn tile_plans(
                     }
                 }
                 plan.mass = plan.mass.max(mass);
+                weighted_mass += w_of(i).unwrap_or(0.0) * mass;
                 plan.layers[i] = kept;
             }
+            if weighted {
+                // Within the share by construction (`share_of` leaves a hair for rounding).
+                plan.mass = weighted_mass.min(share);
+            }
             plan
+        })
+        .collect()
+}
+
+/// Per tile of the target (row-major tiles), each normal's largest blend weight (`N` a tile).
+fn tile_max_weights(weights: &[f32], n: usize, (tw, th): (usize, usize)) -> Vec<f32> {
+    let (tiles_x, tiles_y) = (tw.div_ceil(TILE_W), th.div_ceil(TILE_H));
+    let px = tw * th;
+    (0..tiles_x * tiles_y)
+        .into_par_iter()
+        .flat_map_iter(|k| {
+            let (x0, y0) = ((k % tiles_x) * TILE_W, (k / tiles_x) * TILE_H);
+            let (x1, y1) = ((x0 + TILE_W).min(tw), (y0 + TILE_H).min(th));
+            (0..n).map(move |i| {
+                (y0..y1)
+                    .flat_map(|y| &weights[i * px + y * tw + x0..i * px + y * tw + x1])
+                    .fold(0.0_f32, |m, v| m.max(*v))
+            })
         })
         .collect()
 }
@@ -717,7 +768,18 @@ fn render_plan(mhi: &Mhi, target: &Camera, opts: &RenderOptions<'_>) -> Result<R
         stats.layers_pruned += skip.iter().filter(|s| **s).count();
         global_skip.push(skip);
     }
-    let tiles = tile_plans(mhi, &hs, &active, &global_skip, share, (tw, th));
+    let kept = active.iter().filter(|a| **a).count();
+    let tile_weights = (eps > 0.0 && share > 0.0 && !opts.keep_multi_normal && kept > 1)
+        .then(|| tile_max_weights(&weights, n, (tw, th)));
+    let tiles = tile_plans(
+        mhi,
+        &hs,
+        &active,
+        &global_skip,
+        share,
+        tile_weights.as_deref(),
+        (tw, th),
+    );
     let (mut pairs, mut composited) = (0_usize, 0_usize);
     for t in &tiles {
         pairs += t.visible;

@@ -614,3 +614,58 @@ fn light_normals_stop_early_and_the_blend_stays_within_the_budget() {
         each.stats
     );
 }
+
+#[test]
+fn light_normals_leave_out_more_layers_and_the_blend_stays_within_the_budget() {
+    // Faint layers (alpha 0.004–0.006 against a layer share of 0.002): a normal whose own
+    // image is bounded keeps them all, but in a blend where it weighs at most 0.02 each of its
+    // layers moves a pixel by a hundredth of that, so its tiles skip several.
+    let (n, d, w, h) = (5, 12, 64, 32);
+    let base = random_mhi(n, d, w, h, true, 33);
+    let px = (w * h) as usize;
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    let alpha: Vec<f32> = (0..n * d * px)
+        .map(|k| {
+            if (k / px).is_multiple_of(d) {
+                1.0
+            } else {
+                0.004 + 0.002 * rng.random::<f32>()
+            }
+        })
+        .collect();
+    let mhi = with_layers(&base, base.color().clone(), alpha);
+    let tgt = target(&mhi, 1.0, -0.5, DVec3::new(0.01, 0.0, 0.02));
+    // Normal 0 carries 0.92 of the blend, the other four 0.02 each.
+    let mut weights = vec![0.02_f32; n * px];
+    weights[..px].fill(0.92);
+    let opts = |prune, keep_multi_normal| RenderOptions {
+        blend: Blend::Weights(&weights),
+        prune,
+        keep_multi_normal,
+    };
+    let exact = render(&mhi, &tgt, &opts(Prune::NONE, false)).unwrap();
+    let blended = render(&mhi, &tgt, &opts(Prune::DEFAULT, false)).unwrap();
+    let each = render(&mhi, &tgt, &opts(Prune::DEFAULT, true)).unwrap();
+    // Bounded on its own, no normal's tiles skip a layer here; blended, the light ones do.
+    assert!(each.stats.composited > 0.999, "{:?}", each.stats);
+    assert!(
+        blended.stats.composited < 0.85,
+        "blended {:?}, each normal bounded {:?}",
+        blended.stats,
+        each.stats
+    );
+    for r in [&blended, &each] {
+        assert!(
+            r.stats.bound <= Prune::DEFAULT.budget + 1e-7,
+            "{:?}",
+            r.stats
+        );
+        let worst = largest_change(&r.image, &exact.image);
+        assert!(
+            worst <= r.stats.bound + 1e-6,
+            "a pixel moved by {worst}, beyond the bound {} ({:?})",
+            r.stats.bound,
+            r.stats
+        );
+    }
+}

@@ -243,7 +243,8 @@ fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<
     )?];
     if let (Some(m), Some(run)) = (&model, &a.run) {
         let (mhi, _) = mhi_net::ViewSynthesis::new(mhi_net::MhiSource::Learned(m)).mhi(&rf, &sf)?;
-        // As `eval` and `render` render a learned MHI: every multi-normal image kept.
+        // As `render` renders a learned MHI (and `eval` its learned blend): every multi-normal
+        // image kept.
         let mni = |prune| RenderOptions {
             blend: Blend::Heuristic(BlendHeuristic::Avg),
             prune,

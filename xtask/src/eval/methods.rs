@@ -91,31 +91,40 @@ impl Ctx<'_> {
             let d = model.depths().len();
             let synth = ViewSynthesis::new(MhiSource::Learned(model));
             let (mhi, t) = synth.mhi(rf, sf)?;
-            // With the Soft blend's pruned-against-exact check, the multi-normal images are
-            // rendered both ways, alternately (the pruned ones are scored).
-            let check = self.wants(Method::Soft) && a.prune().budget > 0.0 && !is_mpi;
-            let timed = |prune| -> anyhow::Result<_> {
-                let m = multi_normal(&mhi, &tf.camera, prune)?;
-                let ms = m.render_ms;
-                Ok((m, ms))
-            };
-            let (mn, exact_mn) = if check {
-                let ((e, e_ms), (p, p_ms)) = paired(|| timed(Prune::NONE), || timed(a.prune()))?;
-                (
-                    mhi_net::MultiNormal {
-                        render_ms: p_ms,
-                        ..p
-                    },
-                    Some((e, e_ms)),
-                )
-            } else {
-                (multi_normal(&mhi, &tf.camera, a.prune())?, None)
-            };
-            let base = Times {
+            let inference = Times {
                 volume_ms: t.volume_ms,
                 network_ms: t.network_ms,
+                ..Times::default()
+            };
+            // The Soft blend needs no multi-normal images: it is rendered as the sweep's is,
+            // its blend bounded within the budget (light normals leave out more) and, for the
+            // pruned-against-exact table, exactly too.
+            let soft = |out: &mut Vec<Output>| -> anyhow::Result<()> {
+                let (image, render_ms, exact) = render_soft(&mhi, tf, a)?;
+                out.push(Output {
+                    method: "soft".into(),
+                    normals: n,
+                    planes: d,
+                    image,
+                    times: Times {
+                        render_ms,
+                        ..inference
+                    },
+                    exact,
+                });
+                Ok(())
+            };
+            let from_images = [Method::Learned, Method::Hard, Method::Avg];
+            if !is_mpi && !from_images.iter().any(|m| self.wants(*m)) {
+                soft(&mut out)?;
+                continue;
+            }
+            // The learned blend reads the multi-normal images (each within the budget on its
+            // own); Hard and Avg blend the same images.
+            let mn = multi_normal(&mhi, &tf.camera, a.prune())?;
+            let base = Times {
                 render_ms: mn.render_ms,
-                blend_ms: 0.0,
+                ..inference
             };
             if is_mpi {
                 out.push(Output {
@@ -137,46 +146,12 @@ impl Ctx<'_> {
                 if !self.wants(which) {
                     continue;
                 }
-                let b = blend(BlendChoice::Heuristic(h))?;
-                let weights = b.weights.clone();
-                let mut o = blended(name, n, d, b, base);
-                if let (Method::Soft, Some((e, e_ms))) = (which, &exact_mn) {
-                    // The same MHI's multi-normal images rendered exactly, Soft-blended. They
-                    // were kept (the learned blend reads them), each within the budget on its
-                    // own, so the floor is the per-normal one.
-                    o.exact.push(ExactCheck {
-                        budget: a.budget,
-                        pruned: None,
-                        image: combine(&e.images, &weights),
-                        render_ms: *e_ms,
-                        stats: mn.stats,
-                        needed: mhi_render::needed_share_per_normal(
-                            &mhi,
-                            &tf.camera,
-                            a.prune().budget,
-                        ),
-                    });
-                }
                 if which == Method::Soft {
-                    for &b in &a.also_budgets {
-                        let prune = Prune::with_budget(b / 255.0);
-                        let ((e, e_ms), (p, p_ms)) =
-                            paired(|| timed(Prune::NONE), || timed(prune))?;
-                        o.exact.push(ExactCheck {
-                            budget: b,
-                            pruned: Some((combine(&p.images, &weights), p_ms)),
-                            image: combine(&e.images, &weights),
-                            render_ms: e_ms,
-                            stats: p.stats,
-                            needed: mhi_render::needed_share_per_normal(
-                                &mhi,
-                                &tf.camera,
-                                prune.budget,
-                            ),
-                        });
-                    }
+                    soft(&mut out)?;
+                    continue;
                 }
-                out.push(o);
+                let b = blend(BlendChoice::Heuristic(h))?;
+                out.push(blended(name, n, d, b, base));
             }
         }
         let made = |source: MhiSource<'_>| ViewSynthesis::new(source).mhi(rf, sf);

@@ -16,9 +16,7 @@ use mhi_eval::report::{self, Comparison, Config, Measurement, Row, Times, config
 use mhi_geom::{BlendHeuristic, NormalSet};
 use mhi_net::backbone::{Backbone, Net};
 use mhi_net::{BlendChoice, Blended, MhiSource, Model, ViewSynthesis, multi_normal};
-use mhi_render::{
-    Blend, Mhi, Prune, RenderOptions, SweepConfig, combine, heuristic_weights_for, render,
-};
+use mhi_render::{Blend, Mhi, Prune, RenderOptions, SweepConfig, heuristic_weights_for, render};
 use serde::Serialize;
 
 mod methods;

@@ -252,13 +252,24 @@ fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<
         };
         out.push(time_pruning(
             run.display().to_string(),
-            scene,
+            scene.clone(),
             size,
             a.runs,
             pool,
             &mhi,
             &tf.camera,
             (&mni(Prune::NONE), &mni(Prune::DEFAULT)),
+        )?);
+        // And as `eval`'s soft row renders it: Soft weights, only the blend bounded.
+        out.push(time_pruning(
+            format!("{} (Soft, as eval's soft row)", run.display()),
+            scene,
+            size,
+            a.runs,
+            pool,
+            &mhi,
+            &tf.camera,
+            (&soft, &pruned_opts),
         )?);
     }
     Ok(out)

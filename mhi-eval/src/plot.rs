@@ -285,12 +285,16 @@ fn draw_curves<DB: DrawingBackend>(
             .draw()
             .map_err(e)?;
         draw_series(&mut chart, curves).map_err(e)?;
-        legend(&mut chart).map_err(e)?;
+        let corner = emptiest_corner(curves, f64::ln, (xlo, xhi), (ylo, yhi));
+        legend(&mut chart, corner).map_err(e)?;
     } else {
-        let (_, xhi) = range(all.clone().map(|p| p.0), 0.05);
-        let (ylo, yhi) = range(all.map(|p| p.1), 0.1);
+        // From zero (a time, a step), unless every x lies far from it (a speed-up near 1).
+        let (xlo, xhi) = range(all.clone().map(|p| p.0), 0.05);
+        let xlo = if xlo > 0.25 * xhi { xlo } else { 0.0 };
+        let xhi = xhi.max(xlo + 1.0);
+        let (ylo, yhi) = range(all.clone().map(|p| p.1), 0.1);
         let mut chart = builder(root)
-            .build_cartesian_2d(0.0..xhi.max(1.0), ylo..yhi)
+            .build_cartesian_2d(xlo..xhi, ylo..yhi)
             .map_err(e)?;
         chart
             .configure_mesh()
@@ -300,7 +304,8 @@ fn draw_curves<DB: DrawingBackend>(
             .draw()
             .map_err(e)?;
         draw_series(&mut chart, curves).map_err(e)?;
-        legend(&mut chart).map_err(e)?;
+        let corner = emptiest_corner(curves, |v| v, (xlo, xhi), (ylo, yhi));
+        legend(&mut chart, corner).map_err(e)?;
     }
     Ok(())
 }
@@ -334,6 +339,7 @@ where
 
 fn legend<'a, DB: DrawingBackend + 'a, X, Y>(
     chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    corner: SeriesLabelPosition,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>>
 where
     X: Ranged<ValueType = f64>,
@@ -344,8 +350,59 @@ where
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .label_font(("sans-serif", 14))
-        .position(SeriesLabelPosition::LowerRight)
+        .position(corner)
         .draw()
+}
+
+/// The corner of the plot whose quarter (the outer 40 % of each axis, after `scale`) the
+/// curves pass through least (their points, and samples along each segment a hundredth of the
+/// plot apart), for the legend; lower right on a tie.
+fn emptiest_corner(
+    curves: &[Curve],
+    scale: impl Fn(f64) -> f64,
+    (x0, x1): (f64, f64),
+    (y0, y1): (f64, f64),
+) -> SeriesLabelPosition {
+    let at = |(x, y): (f64, f64)| {
+        (
+            (scale(x) - scale(x0)) / (scale(x1) - scale(x0)),
+            (scale(y) - scale(y0)) / (scale(y1) - scale(y0)),
+        )
+    };
+    let samples = curves.iter().flat_map(|c| {
+        let pts: Vec<(f64, f64)> = c.points.iter().map(|p| at(*p)).collect();
+        let along: Vec<(f64, f64)> = pts
+            .windows(2)
+            .flat_map(|w| {
+                // A sample every hundredth of the plot's size along the segment.
+                let (dx, dy) = (w[1].0 - w[0].0, w[1].1 - w[0].1);
+                let steps = ((dx * dx + dy * dy).sqrt() * 100.0).clamp(1.0, 1e4) as u32;
+                (1..steps).map(move |k| {
+                    let t = f64::from(k) / f64::from(steps);
+                    (w[0].0 + t * dx, w[0].1 + t * dy)
+                })
+            })
+            .collect();
+        pts.into_iter().chain(along)
+    });
+    // Lower right, lower left, upper right, upper left.
+    let corners = [(true, false), (false, false), (true, true), (false, true)];
+    let mut count = [0_usize; 4];
+    for (fx, fy) in samples {
+        for (k, (right, upper)) in corners.into_iter().enumerate() {
+            let in_x = if right { fx > 0.6 } else { fx < 0.4 };
+            let in_y = if upper { fy > 0.6 } else { fy < 0.4 };
+            count[k] += usize::from(in_x && in_y);
+        }
+    }
+    let best = (0..4).min_by_key(|k| count[*k]).unwrap_or(0);
+    [
+        SeriesLabelPosition::LowerRight,
+        SeriesLabelPosition::LowerLeft,
+        SeriesLabelPosition::UpperRight,
+        SeriesLabelPosition::UpperLeft,
+    ][best]
+        .clone()
 }
 
 /// `stem.svg` and `stem.png`: PSNR against milliseconds per view (log scale), one labelled point
@@ -460,5 +517,32 @@ mod tests {
                 .contains("learned")
         );
         assert!(d.path().join("t.png").is_file() && d.path().join("t.svg").is_file());
+    }
+
+    #[test]
+    fn the_legend_goes_where_no_curve_passes() {
+        let curve = |points: Vec<(f64, f64)>| Curve {
+            label: "c".into(),
+            points,
+        };
+        let unit = ((0.0, 1.0), (0.0, 1.0));
+        let corner = |c: &[Curve]| emptiest_corner(c, |v| v, unit.0, unit.1);
+        // A level line along the bottom with only its two ends as points, and a curve rising
+        // through the upper right: only the upper left is free.
+        let level = curve(vec![(0.0, 0.05), (1.0, 0.05)]);
+        let rising = curve(vec![(0.0, 0.05), (0.5, 0.5), (0.95, 0.95)]);
+        assert!(matches!(
+            corner(&[level, rising]),
+            SeriesLabelPosition::UpperLeft
+        ));
+        // Lines falling to the right from the upper left (what each budget buys): lower left.
+        let falling = curve(vec![(0.0, 0.95), (0.6, 0.7), (0.95, 0.05)]);
+        let upper = curve(vec![(0.0, 0.95), (0.9, 0.9)]);
+        assert!(matches!(
+            corner(&[falling, upper]),
+            SeriesLabelPosition::LowerLeft
+        ));
+        // Nothing anywhere: lower right.
+        assert!(matches!(corner(&[]), SeriesLabelPosition::LowerRight));
     }
 }

@@ -286,7 +286,7 @@ pub(super) fn budget_tradeoff(
         stem,
         &curves,
         &format!(
-            "leaving out: speed-up against PSNR change, exact and budgets {} (8-bit levels)",
+            "what each budget buys (exact, then {} 8-bit levels)",
             list.join(", ")
         ),
         &mhi_eval::plot::Axes {

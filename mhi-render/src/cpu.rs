@@ -1348,7 +1348,22 @@ impl RowContext<'_> {
                     }
                 }
             }
-            for (r, row) in band_rows.iter().enumerate() {
+            for (r, row) in band_rows.iter_mut().enumerate() {
+                // A pixel that stopped leaves out what lies behind, `t` times a colour in
+                // [0, 1]; dropping it darkened every such pixel by up to its stop. It gets the
+                // mean colour of the layers it composited instead (`c / (1 − t)`, their
+                // weights summing to 1 − t): still within `t` of the exact pixel, but no longer
+                // biased (on `re10k-3`, ΔPSNR at 8 levels −0.016 dB instead of −0.159).
+                if stop {
+                    for ((cx, &t), &th) in row.c.chunks_exact_mut(4).zip(&row.t).zip(&row.thr) {
+                        if t > 0.0 && t <= th && t < 1.0 {
+                            let s = 1.0 / (1.0 - t);
+                            for v in &mut cx[..3] {
+                                *v *= s;
+                            }
+                        }
+                    }
+                }
                 let y = y0 + r;
                 let wrow = &weights[i * px + y * tw..i * px + (y + 1) * tw];
                 let o_row = &mut out[r * 3 * tw..(r + 1) * 3 * tw];
@@ -1818,6 +1833,14 @@ mod tests {
                 };
             }
             t -= ta;
+        }
+        // A pixel that stopped takes the mean colour of what it composited for what it left
+        // out behind.
+        if stop > 0.0 && t > 0.0 && t <= stop && t < 1.0 {
+            let s = 1.0 / (1.0 - t);
+            for v in &mut c {
+                *v *= s;
+            }
         }
         (c, composited, outside)
     }

@@ -569,8 +569,16 @@ fn light_normals_stop_early_and_the_blend_stays_within_the_budget() {
             }
         })
         .collect();
-    let white = Rgb32FImage::from_pixel(w, h, image::Rgb([1.0, 1.0, 1.0]));
-    let mhi = with_layers(&base, LayerColor::Shared(white), alpha);
+    // White near layers in front of black far ones: a pixel that stops among the white ones
+    // gives what it left out the white of what it composited, where black was behind, so the
+    // change reaches its bound.
+    let colors: Vec<Rgb32FImage> = (0..n * d)
+        .map(|k| {
+            let v = if k % d > d / 3 { 1.0 } else { 0.0 };
+            Rgb32FImage::from_pixel(w, h, image::Rgb([v, v, v]))
+        })
+        .collect();
+    let mhi = with_layers(&base, LayerColor::PerLayer(colors), alpha);
     let tgt = target(&mhi, 1.0, 0.5, DVec3::new(0.02, 0.0, 0.01));
     // Normal 0 from 0.9 of the blend at the left edge to 0.2 at the right; the others share
     // the rest as 1 : 2 : 3 : 4.
@@ -666,6 +674,54 @@ fn light_normals_leave_out_more_layers_and_the_blend_stays_within_the_budget() {
             "a pixel moved by {worst}, beyond the bound {} ({:?})",
             r.stats.bound,
             r.stats
+        );
+    }
+}
+
+#[test]
+fn a_stopped_pixel_gives_what_it_leaves_out_the_colour_it_composited() {
+    // Every layer the same grey and alphas that stop most pixels well before the far layer:
+    // what a stopped pixel leaves out behind it is that grey, and taking the mean colour of
+    // what it composited for it changes nothing (dropping it would darken the pixel by up to
+    // its stop).
+    let (n, d, w, h) = (3, 16, 40, 24);
+    let base = random_mhi(n, d, w, h, false, 4);
+    let px = (w * h) as usize;
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let alpha: Vec<f32> = (0..n * d * px)
+        .map(|k| {
+            if (k / px).is_multiple_of(d) {
+                1.0
+            } else {
+                0.3 + 0.2 * rng.random::<f32>()
+            }
+        })
+        .collect();
+    let grey = Rgb32FImage::from_pixel(w, h, image::Rgb([0.5, 0.5, 0.5]));
+    let mhi = with_layers(&base, LayerColor::Shared(grey), alpha);
+    let tgt = target(&mhi, 0.5, 0.5, DVec3::new(0.01, 0.0, 0.01));
+    let opts = |prune| RenderOptions {
+        blend: Blend::Heuristic(BlendHeuristic::Avg),
+        prune,
+        keep_multi_normal: true,
+    };
+    let exact = render(&mhi, &tgt, &opts(Prune::NONE)).unwrap();
+    let pruned = render(&mhi, &tgt, &opts(Prune::with_budget(8.0 / 255.0))).unwrap();
+    assert!(pruned.stats.samples < 0.8, "{:?}", pruned.stats);
+    // Away from the border (where bilinear taps outside the image read zero colour, so the
+    // layers are not all grey there).
+    for (p, e) in pruned.multi_normal.iter().zip(&exact.multi_normal) {
+        let worst = (4..h - 4)
+            .flat_map(|y| (4..w - 4).map(move |x| (x, y)))
+            .flat_map(|(x, y)| {
+                let (a, b) = (p.get_pixel(x, y).0, e.get_pixel(x, y).0);
+                (0..3).map(move |k| (a[k] - b[k]).abs())
+            })
+            .fold(0.0_f32, f32::max);
+        assert!(
+            worst < 1e-5,
+            "a pixel moved by {worst} (bound {})",
+            pruned.stats.bound
         );
     }
 }

@@ -48,7 +48,10 @@ mod plane;
 mod pose;
 mod rotation;
 
-pub use angle::{BlendHeuristic, angle_cost, angle_cost_in_target, exp_small, soft_weight};
+pub use angle::{
+    BlendHeuristic, angle_cost, angle_cost_in_target, exp_small, exp_taylor, soft_weight,
+    soft_weight_for_f32,
+};
 pub use camera::Camera;
 pub use error::{Error, Result};
 pub use homography::{

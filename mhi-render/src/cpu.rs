@@ -279,16 +279,20 @@ fn soft_row_generic(nt: &[DVec3], k: &mhi_geom::Intrinsics, y: usize, w: usize, 
         let base = v.y * ry + v.z;
         for (((o, s), rx), inv) in wk.iter_mut().zip(&mut sum).zip(&rx).zip(&inv) {
             let delta = ((v.x * rx + base) * inv).abs().min(1.0);
-            *o = mhi_geom::soft_weight(delta);
+            *o = mhi_geom::soft_weight_for_f32(delta);
             *s += *o;
         }
+    }
+    // One division a pixel, not one a weight.
+    for s in &mut sum {
+        *s = 1.0 / *s;
     }
     for (r, wk) in row
         .chunks_exact_mut(w.max(1))
         .zip(wts.chunks_exact(w.max(1)))
     {
         for ((o, v), s) in r.iter_mut().zip(wk).zip(&sum) {
-            *o = (v / s) as f32;
+            *o = (v * s) as f32;
         }
     }
 }

@@ -125,12 +125,18 @@ impl std::str::FromStr for BlendHeuristic {
 /// renderer computes it for every normal at every pixel of a view.
 #[inline]
 pub fn soft_weight(delta: f64) -> f64 {
+    exp_small(soft_exponent(delta))
+}
+
+/// `3 (2δ − 1)` for δ clamped to `[0, 1]`, NaN taken as 0: the exponent of [`soft_weight`].
+#[inline]
+fn soft_exponent(delta: f64) -> f64 {
     let d = if delta.is_nan() {
         0.0
     } else {
         delta.clamp(0.0, 1.0)
     };
-    exp_small(3.0 * (2.0 * d - 1.0))
+    3.0 * (2.0 * d - 1.0)
 }
 
 /// [`soft_weight`] to a relative 2·10⁻¹⁰ instead of the last digits ([`exp_taylor`] to degree
@@ -138,12 +144,7 @@ pub fn soft_weight(delta: f64) -> f64 {
 /// every normal at every pixel.
 #[inline]
 pub fn soft_weight_for_f32(delta: f64) -> f64 {
-    let d = if delta.is_nan() {
-        0.0
-    } else {
-        delta.clamp(0.0, 1.0)
-    };
-    exp_taylor::<8>(3.0 * (2.0 * d - 1.0))
+    exp_taylor::<8>(soft_exponent(delta))
 }
 
 /// `1 / n!` for `n = 0 … 12`: the Taylor series of [`exp_taylor`].

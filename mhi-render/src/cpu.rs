@@ -38,10 +38,14 @@ pub enum Blend<'a> {
 ///   part of the reference image the tile sees stays within the layer share. Removing layers of
 ///   alphas a_j from an over-composite changes it by at most Σ a_j (each removal changes it by
 ///   a_j times a colour difference of at most 1), so the skipped mass is accumulated, not
-///   bounded per layer;
+///   bounded per layer. When only the blended view is asked for (not the multi-normal images),
+///   a pixel changes by Σ_i w_i · mass_i, so each kept normal gets an equal part of the share
+///   divided by its largest blend weight in the tile: a light normal leaves out more;
 /// - **transmittance** — a pixel stops compositing once its remaining transmittance is within
 ///   its share, plus whatever layer share its tile did not spend: what lies behind adds at most
-///   that much. When only the blended view is asked for (not the multi-normal images), the
+///   that much, and the pixel takes the mean colour of the layers it composited for it (its
+///   colour divided by 1 − T: still within T of the exact pixel, but not always darker).
+///   When only the blended view is asked for (not the multi-normal images), the
 ///   share bounds the blend, Σ_i w_i · T_i, and each of the `K` kept normals spends an equal
 ///   part of it: normal i stops at `T ≤ share / (K · w_i)` at that pixel, so a light normal stops
 ///   after a layer or two and a heavy one a little later than alone. With the multi-normal images

@@ -51,6 +51,27 @@ fn with_layers(base: &Mhi, color: LayerColor, alpha: Vec<f32>) -> Mhi {
     .unwrap()
 }
 
+/// Alphas of `n` normals × `d` layers × `px` pixels: the far layer of each normal opaque, the
+/// others uniform in `lo..lo + span`.
+fn alphas_with_opaque_far(
+    n: usize,
+    d: usize,
+    px: usize,
+    (lo, span): (f32, f32),
+    seed: u64,
+) -> Vec<f32> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..n * d * px)
+        .map(|k| {
+            if (k / px).is_multiple_of(d) {
+                1.0
+            } else {
+                lo + span * rng.random::<f32>()
+            }
+        })
+        .collect()
+}
+
 /// The largest |a − b| over pixels and channels.
 fn largest_change(a: &Rgb32FImage, b: &Rgb32FImage) -> f32 {
     a.as_raw()
@@ -549,8 +570,9 @@ fn the_needed_share_is_a_floor_of_what_a_pruned_render_composites() {
 
 /// Without the multi-normal images only the blend is bounded, so each pixel's normals stop by
 /// blend weight: a light normal stops early, a heavy one late, Σ_i w_i · stop_i within the stop
-/// share. Every layer is white and the far one opaque, so a pixel loses exactly the
-/// transmittance at which each normal stopped: the worst case of the bound. With weights far
+/// share. The near layers are white and the far ones black, so a stopped pixel, which takes the
+/// white it composited for what lies behind, errs by the transmittance at which each normal
+/// stopped: the worst case of the bound. With weights far
 /// apart, the blended render composites fewer samples than one that bounds every normal's image
 /// on its own, and both stay within their bounds at every pixel. (Fails, by more than twice the
 /// budget, if each normal spends the whole stop share at its weight.)
@@ -559,16 +581,7 @@ fn light_normals_stop_early_and_the_blend_stays_within_the_budget() {
     let (n, d, w, h) = (5, 24, 40, 24);
     let base = random_mhi(n, d, w, h, false, 21);
     let px = (w * h) as usize;
-    let mut rng = ChaCha8Rng::seed_from_u64(5);
-    let alpha: Vec<f32> = (0..n * d * px)
-        .map(|k| {
-            if (k / px).is_multiple_of(d) {
-                1.0
-            } else {
-                0.15 + 0.2 * rng.random::<f32>()
-            }
-        })
-        .collect();
+    let alpha = alphas_with_opaque_far(n, d, px, (0.15, 0.2), 5);
     // White near layers in front of black far ones: a pixel that stops among the white ones
     // gives what it left out the white of what it composited, where black was behind, so the
     // change reaches its bound.
@@ -631,16 +644,7 @@ fn light_normals_leave_out_more_layers_and_the_blend_stays_within_the_budget() {
     let (n, d, w, h) = (5, 12, 64, 32);
     let base = random_mhi(n, d, w, h, true, 33);
     let px = (w * h) as usize;
-    let mut rng = ChaCha8Rng::seed_from_u64(8);
-    let alpha: Vec<f32> = (0..n * d * px)
-        .map(|k| {
-            if (k / px).is_multiple_of(d) {
-                1.0
-            } else {
-                0.004 + 0.002 * rng.random::<f32>()
-            }
-        })
-        .collect();
+    let alpha = alphas_with_opaque_far(n, d, px, (0.004, 0.002), 8);
     let mhi = with_layers(&base, base.color().clone(), alpha);
     let tgt = target(&mhi, 1.0, -0.5, DVec3::new(0.01, 0.0, 0.02));
     // Normal 0 carries 0.92 of the blend, the other four 0.02 each.
@@ -687,16 +691,7 @@ fn a_stopped_pixel_gives_what_it_leaves_out_the_colour_it_composited() {
     let (n, d, w, h) = (3, 16, 40, 24);
     let base = random_mhi(n, d, w, h, false, 4);
     let px = (w * h) as usize;
-    let mut rng = ChaCha8Rng::seed_from_u64(6);
-    let alpha: Vec<f32> = (0..n * d * px)
-        .map(|k| {
-            if (k / px).is_multiple_of(d) {
-                1.0
-            } else {
-                0.3 + 0.2 * rng.random::<f32>()
-            }
-        })
-        .collect();
+    let alpha = alphas_with_opaque_far(n, d, px, (0.3, 0.2), 6);
     let grey = Rgb32FImage::from_pixel(w, h, image::Rgb([0.5, 0.5, 0.5]));
     let mhi = with_layers(&base, LayerColor::Shared(grey), alpha);
     let tgt = target(&mhi, 0.5, 0.5, DVec3::new(0.01, 0.0, 0.01));

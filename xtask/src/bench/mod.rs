@@ -231,16 +231,19 @@ fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<
     });
     let (mhi, _) = synth.mhi(&rf, &sf)?;
     let (soft, pruned_opts) = soft_exact_and_pruned();
-    let mut out = vec![time_pruning(
-        "sweep".into(),
-        scene.clone(),
-        size,
-        a.runs,
-        pool,
-        &mhi,
-        &tf.camera,
-        (&soft, &pruned_opts),
-    )?];
+    let time = |what: String, mhi: &Mhi, (exact, pruned)| {
+        time_pruning(
+            what,
+            scene.clone(),
+            size,
+            a.runs,
+            pool,
+            mhi,
+            &tf.camera,
+            (exact, pruned),
+        )
+    };
+    let mut out = vec![time("sweep".into(), &mhi, (&soft, &pruned_opts))?];
     if let (Some(m), Some(run)) = (&model, &a.run) {
         let (mhi, _) = mhi_net::ViewSynthesis::new(mhi_net::MhiSource::Learned(m)).mhi(&rf, &sf)?;
         // As `render` renders a learned MHI (and `eval` its learned blend): every multi-normal
@@ -250,25 +253,12 @@ fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<
             prune,
             keep_multi_normal: true,
         };
-        out.push(time_pruning(
-            run.display().to_string(),
-            scene.clone(),
-            size,
-            a.runs,
-            pool,
-            &mhi,
-            &tf.camera,
-            (&mni(Prune::NONE), &mni(Prune::DEFAULT)),
-        )?);
+        let kept = (mni(Prune::NONE), mni(Prune::DEFAULT));
+        out.push(time(run.display().to_string(), &mhi, (&kept.0, &kept.1))?);
         // And as `eval`'s soft row renders it: Soft weights, only the blend bounded.
-        out.push(time_pruning(
+        out.push(time(
             format!("{} (Soft, as eval's soft row)", run.display()),
-            scene,
-            size,
-            a.runs,
-            pool,
             &mhi,
-            &tf.camera,
             (&soft, &pruned_opts),
         )?);
     }

@@ -19,6 +19,9 @@ use serde::Serialize;
 
 /// The viewer page (no external scripts; it reads data.js beside it).
 pub const VIEWER_HTML: &str = include_str!("../assets/viewer.html");
+/// The viewer's script (a file of its own, so that the page's Content-Security-Policy can
+/// forbid inline scripts).
+pub const VIEWER_JS: &str = include_str!("../assets/viewer.js");
 
 /// A camera as the viewer reads it: intrinsics in pixels of the exported size and the
 /// world-to-camera pose, rotation row-major then translation.
@@ -250,6 +253,7 @@ pub fn write_viewer(
         })
     );
     mhi_data::write_atomic(&dir.join("data.js"), data.as_bytes())?;
+    mhi_data::write_atomic(&dir.join("viewer.js"), VIEWER_JS.as_bytes())?;
     mhi_data::write_atomic(&dir.join("index.html"), VIEWER_HTML.as_bytes())?;
     Ok(())
 }

@@ -11,7 +11,7 @@ mod common;
 
 use std::process::Command;
 
-use common::browser::{chromium_or_skip, screenshot};
+use common::browser::{chromium_or_skip, dump_dom, screenshot};
 
 use mhi_data::{SynthConfig, generate};
 
@@ -143,4 +143,24 @@ fn the_browser_viewer_agrees_with_the_cpu_renderer() {
         .unwrap()
         .unwrap();
     assert!(black < 35.0, "a black frame scores {black:.2} dB");
+    // A hostile link (the hash reaches the page's error message) must show text, not run it;
+    // the page's own script must still run under its Content-Security-Policy.
+    let hostile = "view=%3Cimg%20src%3Dx%20onerror%3D%22document.title%3D%27pwned%27%22%3E";
+    let dom = dump_dom(&browser, &viewer.join("index.html"), hostile, d.path());
+    assert!(
+        dom.contains("error: no view"),
+        "the viewer's script did not run:\n{dom}"
+    );
+    assert!(
+        !dom.contains("pwned</title>"),
+        "script from the URL ran:\n{dom}"
+    );
+    assert!(
+        !dom.contains("<img"),
+        "markup from the URL reached the page:\n{dom}"
+    );
+    assert!(
+        dom.contains("&lt;img src=x"),
+        "the URL is shown as text:\n{dom}"
+    );
 }

@@ -74,3 +74,31 @@ pub fn screenshot(
     let img = image::open(&shot).expect("screenshot").to_rgb8();
     image::imageops::crop_imm(&img, 0, 0, w, h).to_image()
 }
+
+/// The DOM of `page#hash` after its scripts ran (Chromium's `--dump-dom`). Used by the
+/// viewer test, not by the unit tests of `src/export.rs` that include this file too.
+#[allow(dead_code)]
+pub fn dump_dom(browser: &Path, page: &Path, hash: &str, dir: &Path) -> String {
+    let out = Command::new(browser)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--no-first-run",
+            "--virtual-time-budget=3000",
+            "--dump-dom",
+        ])
+        .arg(format!(
+            "--user-data-dir={}",
+            dir.join("profile-dom").display()
+        ))
+        .arg(format!("file://{}#{hash}", page.display()))
+        .output()
+        .expect("run chromium");
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}

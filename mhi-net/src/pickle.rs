@@ -199,10 +199,50 @@ fn build(obj: Value, state: Value) -> Result<Value, String> {
     }
 }
 
+/// The deepest nesting of containers read: the weights' files nest a few levels; a file nested
+/// deeper is a crafted one (it would overflow the stack when dropped or flattened).
+pub const MAX_DEPTH: usize = 64;
+/// The most container nodes the reader walks and copies in all (the memo's copies included):
+/// the weights' files need a few thousand; a "memo bomb" that doubles a value with every
+/// opcode reaches it after about twenty opcodes, long before memory runs out.
+pub const MAX_WORK: u64 = 5_000_000;
+
+/// The nesting depth of `v`, walked without recursion; every node visited counts into `work`.
+fn measure(v: &Value, work: &mut u64) -> Result<usize, String> {
+    let mut todo: Vec<(&Value, usize)> = vec![(v, 1)];
+    let mut deepest = 0;
+    while let Some((v, d)) = todo.pop() {
+        *work += 1;
+        if *work > MAX_WORK {
+            return Err(format!(
+                "the pickle builds more than {MAX_WORK} objects (a memo bomb?); the weights' files build a few thousand"
+            ));
+        }
+        if d > MAX_DEPTH {
+            return Err(format!(
+                "the pickle nests deeper than {MAX_DEPTH} levels; the weights' files nest a few"
+            ));
+        }
+        deepest = deepest.max(d);
+        match v {
+            Value::Tuple(items) | Value::List(items) => {
+                todo.extend(items.iter().map(|c| (c, d + 1)))
+            }
+            Value::Dict(items) => {
+                todo.extend(items.iter().flat_map(|(k, c)| [(k, d + 1), (c, d + 1)]));
+            }
+            Value::Reduce(f, a) => todo.extend([(&**f, d + 1), (&**a, d + 1)]),
+            _ => {}
+        }
+    }
+    Ok(deepest)
+}
+
 fn run(bytes: &[u8]) -> Result<Value, (usize, String)> {
     let mut r = Reader { b: bytes, pos: 0 };
     let mut stack: Vec<Value> = Vec::new();
     let mut memo: BTreeMap<u32, Value> = BTreeMap::new();
+    let mut work = 0_u64;
     loop {
         let at = r.pos;
         let op = r.u8().map_err(|e| (at, e))?;
@@ -283,11 +323,15 @@ fn run(bytes: &[u8]) -> Result<Value, (usize, String)> {
                 }
                 b'h' => {
                     let i = r.u8()?;
-                    stack.push(memo.get(&u32::from(i)).ok_or("memo key missing")?.clone());
+                    let v = memo.get(&u32::from(i)).ok_or("memo key missing")?;
+                    measure(v, &mut work)?;
+                    stack.push(v.clone());
                 }
                 b'j' => {
                     let i = r.u32()?;
-                    stack.push(memo.get(&i).ok_or("memo key missing")?.clone());
+                    let v = memo.get(&i).ok_or("memo key missing")?;
+                    measure(v, &mut work)?;
+                    stack.push(v.clone());
                 }
                 b't' => {
                     let items = pop_mark(&mut stack)?;
@@ -366,6 +410,10 @@ fn run(bytes: &[u8]) -> Result<Value, (usize, String)> {
                     }
                 }
                 other => return Err(format!("unsupported pickle opcode 0x{other:02x}")),
+            }
+            // Whatever the opcode built or grew is on top: no deeper than allowed.
+            if let Some(top) = stack.last() {
+                measure(top, &mut work)?;
             }
             Ok(None)
         })();

@@ -38,3 +38,40 @@ fn truncated_or_corrupt_pickles_are_errors_with_offsets() {
         let _ = read_weights_pickle(&b, Path::new("x"));
     }
 }
+
+/// A pickle that nests lists a hundred thousand deep (`]` EMPTY_LIST, then `a` APPEND of the
+/// next into the one before, in a way Python writes as `[[[[…]]]]`): refused with the depth,
+/// not a stack overflow when it is dropped.
+#[test]
+fn a_deeply_nested_pickle_is_refused() {
+    let depth = 100_000;
+    let mut b = vec![0x80, 2];
+    for _ in 0..depth {
+        b.push(b'('); // MARK
+        b.push(b']'); // EMPTY_LIST
+    }
+    // APPENDS: the list on top goes into the one below.
+    b.extend(std::iter::repeat_n(b'e', depth));
+    b.push(b'.');
+    let e = read_weights_pickle(&b, Path::new("deep.ckpt"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("nests deeper than"), "{e}");
+}
+
+/// A 1.3 kB "memo bomb": a tuple of the memoised value twice, memoised again, 60 times over,
+/// would be 2^60 objects. Refused after a bounded amount of work.
+#[test]
+fn a_memo_bomb_is_refused() {
+    let mut b = vec![0x80, 2, b'N', b'q', 0]; // None, BINPUT 0
+    for i in 0..60u8 {
+        // BINGET i, BINGET i, TUPLE2, BINPUT i+1
+        b.extend([b'h', i, b'h', i, 0x86, b'q', i + 1]);
+    }
+    b.push(b'.');
+    assert!(b.len() < 1400);
+    let e = read_weights_pickle(&b, Path::new("bomb.ckpt"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("memo bomb"), "{e}");
+}

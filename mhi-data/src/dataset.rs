@@ -164,7 +164,27 @@ impl Dataset {
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_default();
+            if name.is_empty() || name == "." || name == ".." {
+                out.warnings.push(Warning {
+                    path: cam_path.clone(),
+                    message: format!(
+                        "skipped: a sequence named {name:?} would read its frames from {} folder",
+                        if name == ".." { "the parent" } else { "this" }
+                    ),
+                });
+                out.skipped_sequences += 1;
+                continue;
+            }
             let file = CameraFile::read(&cam_path)?;
+            if let Some(w) = &file.rotation_warning {
+                out.warnings.push(Warning {
+                    path: cam_path.clone(),
+                    message: w
+                        .strip_prefix(&format!("{}: ", cam_path.display()))
+                        .unwrap_or(w)
+                        .to_string(),
+                });
+            }
             // The frame folder is the camera file's path without `.txt`, taken as the OS gives
             // it (a name that is not UTF-8 still finds its folder).
             let images = list_frames(&cam_path.with_extension(""), &name)?;
@@ -347,16 +367,61 @@ pub struct LoadedFrame {
 /// Decode an image file. Its content must match its extension: a JPEG named `.png` is refused
 /// with an error saying what it really holds (renaming it fixes it), rather than decoded by a
 /// guess that would hide a mixed-up dataset.
+///
+/// The EXIF orientation a photo records is applied, so a portrait photo from a phone is used
+/// upright, as every viewer shows it. An empty file, a file over [`MAX_IMAGE_BYTES`] and
+/// anything that is not a regular file (a FIFO, `/dev/zero`) are refused before decoding.
 pub fn read_rgb(path: &Path) -> Result<RgbImage> {
-    let img = reader(path)?.decode().map_err(|source| Error::Image {
+    use image::ImageDecoder as _;
+    let img_err = |source| Error::Image {
         path: path.to_path_buf(),
         source,
-    })?;
+    };
+    let mut decoder = reader(path)?.into_decoder().map_err(img_err)?;
+    let orientation = decoder.orientation().map_err(img_err)?;
+    let mut img = image::DynamicImage::from_decoder(decoder).map_err(img_err)?;
+    img.apply_orientation(orientation);
     Ok(img.to_rgb8())
+}
+
+/// The largest image file read (1 GiB): far above any photo, below what would exhaust memory.
+pub const MAX_IMAGE_BYTES: u64 = 1 << 30;
+
+/// Check that `path` is a regular file (a link to one is fine) of at most `max_bytes`, and not
+/// empty, before it is read: a FIFO or a device such as `/dev/zero` would be read forever.
+/// `what` names the file for the error ("camera file", "image").
+pub fn check_regular_file(path: &Path, what: &str, max_bytes: u64) -> Result<u64> {
+    let m = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if !m.is_file() {
+        return Err(Error::Dataset {
+            path: path.to_path_buf(),
+            fault: format!(
+                "is not a regular file (a folder, a pipe or a device); a {what} must be a file"
+            ),
+        });
+    }
+    if m.len() == 0 {
+        return Err(Error::Dataset {
+            path: path.to_path_buf(),
+            fault: format!("is empty (0 bytes): not a {what}"),
+        });
+    }
+    if m.len() > max_bytes {
+        return Err(Error::Dataset {
+            path: path.to_path_buf(),
+            fault: format!(
+                "is {:.1} MB, more than a {what} can sensibly be (at most {:.0} MB)",
+                m.len() as f64 / 1e6,
+                max_bytes as f64 / 1e6
+            ),
+        });
+    }
+    Ok(m.len())
 }
 
 /// An image reader whose format was detected from the content and checked against the name.
 fn reader(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::File>>> {
+    check_regular_file(path, "image", MAX_IMAGE_BYTES)?;
     let reader = ImageReader::open(path)
         .map_err(|e| Error::io(path, e))?
         .with_guessed_format()
@@ -375,17 +440,31 @@ fn reader(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::File>>>
     Ok(reader)
 }
 
+/// The size of an image as it is used: from its header, turned by its EXIF orientation.
+fn oriented_dimensions(path: &Path) -> Result<(u32, u32)> {
+    use image::ImageDecoder as _;
+    let img_err = |source| Error::Image {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut decoder = reader(path)?.into_decoder().map_err(img_err)?;
+    let (w, h) = decoder.dimensions();
+    let turned = matches!(
+        decoder.orientation().map_err(img_err)?,
+        image::metadata::Orientation::Rotate90
+            | image::metadata::Orientation::Rotate270
+            | image::metadata::Orientation::Rotate90FlipH
+            | image::metadata::Orientation::Rotate270FlipH
+    );
+    Ok(if turned { (h, w) } else { (w, h) })
+}
+
 /// Check that the frames have one size (read from their headers only): a sequence whose frames
 /// differ in size is a sign of mixed-up data, and is refused naming two frames that differ.
 pub fn check_same_size(frames: &[&Frame]) -> Result<(u32, u32)> {
     let mut first: Option<((u32, u32), &Path)> = None;
     for f in frames {
-        let dims = reader(&f.path)?
-            .into_dimensions()
-            .map_err(|source| Error::Image {
-                path: f.path.clone(),
-                source,
-            })?;
+        let dims = oriented_dimensions(&f.path)?;
         match first {
             None => first = Some((dims, &f.path)),
             Some((d0, p0)) if d0 != dims => {

@@ -30,7 +30,9 @@
 mod dataset;
 mod error;
 mod mix;
+pub mod output;
 mod re10k;
+pub mod sanitize;
 mod synth;
 mod triplets;
 
@@ -38,15 +40,15 @@ use std::io::Write as _;
 use std::path::Path;
 
 pub use dataset::{
-    Dataset, Fit, Frame, LoadedFrame, Sampling, Sequence, Warning, check_same_size, load_frame,
-    read_rgb, root_name, to_f32, to_u8,
+    Dataset, Fit, Frame, LoadedFrame, MAX_IMAGE_BYTES, Sampling, Sequence, Warning,
+    check_regular_file, check_same_size, load_frame, read_rgb, root_name, to_f32, to_u8,
 };
 pub use error::{Error, Result};
 pub use mix::{DataMix, DataSource};
 pub use re10k::{COLUMNS, CameraFile, CameraRow};
 pub use synth::{
-    Hit, INCOMPLETE_MARKER, Scene, Surface, SynthConfig, SynthSummary, Texture, generate,
-    load_scene, make_scene,
+    Hit, INCOMPLETE_MARKER, SYNTH_KIND, Scene, Surface, SynthConfig, SynthSummary, Texture,
+    generate, load_scene, make_scene,
 };
 pub use triplets::{
     CLIP_LEN, NEIGHBOUR_SOURCES, NEIGHBOUR_TARGETS, PAPER_EXTRAPOLATION_SHARE, RotationBin,
@@ -58,20 +60,18 @@ pub use triplets::{
 /// Write `bytes` to `path` atomically: to a temporary file beside it, then renamed into place,
 /// so an interrupted write never leaves a truncated file where a good one was.
 ///
-/// A symbolic link is followed (its target is replaced, the link stays); a path that exists and
-/// is not a regular file (a directory, a device such as `/dev/full`, a pipe) is refused rather
-/// than replaced. The data is flushed to disk before the rename, so a full disk is an error.
+/// Nothing is ever written through a symbolic link: a link at `path` is replaced by the new
+/// file and what it pointed to is left alone. A path that exists and is not a regular file or a
+/// link (a directory, a device such as `/dev/full`, a pipe) is refused rather than replaced. A
+/// new file's mode follows the process's umask (`0666` masked, as `File::create` gives); a
+/// replaced regular file keeps its mode. The data is flushed to disk before the rename, so a
+/// full disk is an error, and it names `path`.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let resolved;
-    let path = match std::fs::symlink_metadata(path) {
-        Ok(m) if m.file_type().is_symlink() => {
-            resolved = std::fs::canonicalize(path).map_err(|e| Error::io(path, e))?;
-            resolved.as_path()
-        }
-        _ => path,
-    };
-    if let Ok(m) = std::fs::metadata(path)
+    static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let old = std::fs::symlink_metadata(path).ok();
+    if let Some(m) = &old
         && !m.is_file()
+        && !m.file_type().is_symlink()
     {
         return Err(Error::Dataset {
             path: path.to_path_buf(),
@@ -82,15 +82,35 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".tmp-")
-        .tempfile_in(dir)
-        .map_err(|e| Error::io(dir, e))?;
-    tmp.write_all(bytes).map_err(|e| Error::io(tmp.path(), e))?;
-    tmp.as_file()
-        .sync_all()
-        .map_err(|e| Error::io(tmp.path(), e))?;
-    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+    let tmp = dir.join(format!(
+        ".tmp-{}-{}-{}",
+        std::process::id(),
+        COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+        name.as_deref().unwrap_or("out")
+    ));
+    let mut options = std::fs::OpenOptions::new();
+    options.write(true).create_new(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt as _;
+        options.mode(0o666);
+    }
+    let written = (|| -> std::io::Result<()> {
+        let mut file = options.open(&tmp)?;
+        file.write_all(bytes)?;
+        if let Some(m) = &old
+            && m.is_file()
+        {
+            file.set_permissions(m.permissions())?;
+        }
+        file.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(Error::io(path, e));
+    }
     Ok(())
 }
 
@@ -121,22 +141,30 @@ mod tests {
     use super::*;
 
     #[test]
-    fn atomic_writes_follow_links_and_refuse_special_files() {
+    fn atomic_writes_replace_links_keep_modes_and_refuse_special_files() {
         let d = tempfile::tempdir().unwrap();
         let target = d.path().join("target.txt");
         std::fs::write(&target, "old").unwrap();
         #[cfg(unix)]
         {
+            use std::os::unix::fs::PermissionsExt as _;
             let link = d.path().join("link.txt");
             std::os::unix::fs::symlink(&target, &link).unwrap();
             write_atomic(&link, b"new").unwrap();
-            assert!(
-                std::fs::symlink_metadata(&link)
-                    .unwrap()
-                    .file_type()
-                    .is_symlink()
-            );
-            assert_eq!(std::fs::read_to_string(&target).unwrap(), "new");
+            // The link is replaced by the file; what it pointed to is untouched.
+            assert!(std::fs::symlink_metadata(&link).unwrap().is_file());
+            assert_eq!(std::fs::read_to_string(&link).unwrap(), "new");
+            assert_eq!(std::fs::read_to_string(&target).unwrap(), "old");
+            // A new file gets what File::create gives (the umask); a replaced one keeps its mode.
+            let plain = d.path().join("plain.txt");
+            std::fs::write(&plain, "x").unwrap();
+            let fresh = d.path().join("fresh.txt");
+            write_atomic(&fresh, b"x").unwrap();
+            let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+            assert_eq!(mode(&fresh), mode(&plain));
+            std::fs::set_permissions(&fresh, std::fs::Permissions::from_mode(0o640)).unwrap();
+            write_atomic(&fresh, b"y").unwrap();
+            assert_eq!(mode(&fresh), 0o640);
         }
         let e = write_atomic(d.path(), b"x").unwrap_err().to_string();
         assert!(e.contains("not a regular file"), "{e}");

@@ -45,11 +45,21 @@ pub struct CameraFile {
     pub url: String,
     /// Frame lines, in strictly increasing timestamp order.
     pub rows: Vec<CameraRow>,
+    /// Set when some rotation was orthonormal only to more than
+    /// [`mhi_geom::ROTATION_TOLERANCE`] (but within [`mhi_geom::FILE_ROTATION_TOLERANCE`]) and
+    /// was re-orthonormalised: the warning to show, with the worst error and its line.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotation_warning: Option<String>,
 }
+
+/// The largest camera file read (1 GiB, about five million rows): a RealEstate10K file holds
+/// hundreds. A FIFO or a device is refused before reading, so nothing is read forever.
+pub const MAX_CAMERA_FILE_BYTES: u64 = 1 << 30;
 
 impl CameraFile {
     /// Read and parse a camera file from disk.
     pub fn read(path: &Path) -> Result<Self> {
+        crate::check_regular_file(path, "camera file", MAX_CAMERA_FILE_BYTES)?;
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
         Self::parse_bytes(&bytes, path)
     }
@@ -90,12 +100,16 @@ impl CameraFile {
             }
         };
         let mut rows: Vec<CameraRow> = Vec::new();
+        let mut worst_rotation = (0.0_f64, 0_usize);
         for (i, line) in lines {
             let n = i + 1;
             if line.trim().is_empty() {
                 continue;
             }
-            let row = parse_row(line, path, n)?;
+            let (row, error) = parse_row(line, path, n)?;
+            if error > worst_rotation.0 {
+                worst_rotation = (error, n);
+            }
             if let Some(prev) = rows.last()
                 && row.timestamp <= prev.timestamp
             {
@@ -113,7 +127,20 @@ impl CameraFile {
         if rows.is_empty() {
             return Err(fault(path, 0, "no frame lines after the URL line"));
         }
-        Ok(Self { url, rows })
+        let rotation_warning = (worst_rotation.0 > mhi_geom::ROTATION_TOLERANCE).then(|| {
+            format!(
+                "{}: rotations are orthonormal only to {:.1e} (worst on line {}; files with nine decimals reach 1e-8): accepted up to {:.0e} and re-orthonormalised",
+                path.display(),
+                worst_rotation.0,
+                worst_rotation.1,
+                mhi_geom::FILE_ROTATION_TOLERANCE
+            )
+        });
+        Ok(Self {
+            url,
+            rows,
+            rotation_warning,
+        })
     }
 
     /// The file's text, in the same format (nine decimals), so that parsing it gives the rows back
@@ -232,7 +259,7 @@ fn check_plausible(v: &[f64; COLUMNS - 1], path: &Path, n: usize) -> Result<()> 
     Ok(())
 }
 
-fn parse_row(line: &str, path: &Path, n: usize) -> Result<CameraRow> {
+fn parse_row(line: &str, path: &Path, n: usize) -> Result<(CameraRow, f64)> {
     let tokens: Vec<&str> = line.split_whitespace().collect();
     if tokens.len() != COLUMNS {
         return Err(fault(
@@ -282,14 +309,27 @@ fn parse_row(line: &str, path: &Path, n: usize) -> Result<CameraRow> {
     check_plausible(&v, path, n)?;
     let mut pose = [0.0; 12];
     pose.copy_from_slice(&v[6..18]);
-    let cam_from_world = RigidTransform::from_row_major_3x4(&pose)
-        .map_err(|e| fault(path, n, format!("invalid world-to-camera pose: {e}")))?;
-    Ok(CameraRow {
-        timestamp,
-        intrinsics,
-        distortion: [v[4], v[5]],
-        cam_from_world,
-    })
+    let rotation = glam::DMat3::from_cols(
+        glam::DVec3::new(pose[0], pose[4], pose[8]),
+        glam::DVec3::new(pose[1], pose[5], pose[9]),
+        glam::DVec3::new(pose[2], pose[6], pose[10]),
+    );
+    let rotation_error = mhi_geom::rotation_error(&rotation);
+    let cam_from_world = RigidTransform::with_tolerance(
+        rotation,
+        glam::DVec3::new(pose[3], pose[7], pose[11]),
+        mhi_geom::FILE_ROTATION_TOLERANCE,
+    )
+    .map_err(|e| fault(path, n, format!("invalid world-to-camera pose: {e}")))?;
+    Ok((
+        CameraRow {
+            timestamp,
+            intrinsics,
+            distortion: [v[4], v[5]],
+            cam_from_world,
+        },
+        rotation_error,
+    ))
 }
 
 #[cfg(test)]

@@ -454,6 +454,7 @@ impl Scene {
         Ok(CameraFile {
             url: format!("synthetic://mhi-data/{}/seed={}", self.kind, self.seed),
             rows,
+            rotation_warning: None,
         })
     }
 }
@@ -918,6 +919,9 @@ pub fn generate(
         &marker,
         b"synthetic generation started and has not finished; generate the set again\n",
     )?;
+    if crate::output::read_marker(out).is_none() {
+        crate::output::mark_dir(out, SYNTH_KIND, false)?;
+    }
     let n_test = config.test_scenes();
     let n_val = config.val_scenes();
     let scenes: Vec<(Scene, PathBuf)> = (0..config.scenes)
@@ -958,6 +962,7 @@ pub fn generate(
         Ok::<(), Error>(())
     })?;
     std::fs::remove_file(&marker).map_err(|e| Error::io(&marker, e))?;
+    crate::output::mark_dir(out, SYNTH_KIND, true)?;
     let names = |split: &str| {
         scenes
             .iter()
@@ -972,6 +977,9 @@ pub fn generate(
         frames: jobs.len(),
     })
 }
+
+/// The kind of output (see [`crate::output`]) a folder [`generate`] wrote is.
+pub const SYNTH_KIND: &str = "synthetic dataset";
 
 /// File in a dataset root while [`generate`] has not finished writing it.
 pub const INCOMPLETE_MARKER: &str = "SYNTH_INCOMPLETE";

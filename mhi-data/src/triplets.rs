@@ -349,17 +349,33 @@ pub struct TripletIndex {
     pub seed: u64,
     /// The triplets, half interpolation and half extrapolation.
     pub triplets: Vec<Triplet>,
+    /// Sequences that could not supply the distinct triplets asked of them, with how many they
+    /// gave (not saved: a warning for whoever drew the index).
+    #[serde(skip)]
+    pub shortfalls: Vec<(String, usize)>,
 }
 
 impl TripletIndex {
     /// Draw `per_sequence` triplets from every sequence, deterministically for `seed`, alternating
     /// interpolation and extrapolation so that each is half of the total (±1).
+    ///
+    /// Every triplet of a sequence is distinct: a draw that repeats one is drawn again (the
+    /// draws are those of an index without repeats otherwise), and a sequence too short to
+    /// supply `per_sequence` distinct triplets gives what it has and is listed in
+    /// [`TripletIndex::shortfalls`] — repeated triplets would make the bootstrap intervals
+    /// too narrow.
     pub fn sample(dataset: &Dataset, per_sequence: usize, seed: u64) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut triplets = Vec::new();
+        let mut shortfalls = Vec::new();
         let mut k = 0usize;
         for seq in &dataset.sequences {
-            for _ in 0..per_sequence {
+            let mut seen = std::collections::HashSet::new();
+            let (mut attempts, mut extra, max_extra) = (per_sequence, 0, 20 * per_sequence + 100);
+            let mut repeated = false;
+            let mut i = 0;
+            while i < attempts {
+                i += 1;
                 let kind = if k.is_multiple_of(2) {
                     TripletKind::Interpolation
                 } else {
@@ -367,12 +383,27 @@ impl TripletIndex {
                 };
                 let clip = sample_clip_for(seq, &mut rng);
                 if let Some((r, s, t)) = pick(clip.len(), kind, &mut rng) {
-                    triplets.push(make(seq, clip[r], clip[s], clip[t], kind));
-                    k += 1;
+                    if seen.insert((clip[r], clip[s], clip[t])) {
+                        triplets.push(make(seq, clip[r], clip[s], clip[t], kind));
+                        k += 1;
+                    } else {
+                        repeated = true;
+                        if extra < max_extra {
+                            extra += 1;
+                            attempts += 1;
+                        }
+                    }
                 }
             }
+            if repeated && seen.len() < per_sequence {
+                shortfalls.push((seq.name.clone(), seen.len()));
+            }
         }
-        Self { seed, triplets }
+        Self {
+            seed,
+            triplets,
+            shortfalls,
+        }
     }
 
     /// Write as pretty JSON, atomically.

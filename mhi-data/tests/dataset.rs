@@ -227,3 +227,38 @@ fn a_sequence_name_that_is_not_utf8_finds_its_frames() {
         .expect("the renamed sequence is kept");
     assert_eq!(seq.frames.len(), 5, "{:?}", ds.warnings);
 }
+
+/// A phone's portrait photo is stored landscape with EXIF orientation 6 ("turn 90° clockwise
+/// to show"): it is used upright, as every viewer shows it, in its pixels and its size.
+#[test]
+fn exif_orientation_is_applied() {
+    let d = tempfile::tempdir().unwrap();
+    // 6 × 4 stored, left half red, right half blue.
+    let img = image::RgbImage::from_fn(6, 4, |x, _| {
+        if x < 3 {
+            image::Rgb([255, 0, 0])
+        } else {
+            image::Rgb([0, 0, 255])
+        }
+    });
+    let mut jpeg = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 95)
+        .encode_image(&img)
+        .unwrap();
+    // An APP1 Exif segment right after SOI: a little-endian TIFF header and one IFD entry,
+    // Orientation (0x0112), SHORT, 1 value: 6.
+    let mut exif = b"Exif\0\0II*\0\x08\0\0\0\x01\0".to_vec();
+    exif.extend([0x12, 0x01, 3, 0, 1, 0, 0, 0, 6, 0, 0, 0, 0, 0, 0, 0]);
+    let mut app1 = vec![0xff, 0xe1];
+    app1.extend(((exif.len() + 2) as u16).to_be_bytes());
+    app1.extend(exif);
+    let mut file = jpeg[..2].to_vec();
+    file.extend(app1);
+    file.extend(&jpeg[2..]);
+    let path = d.path().join("portrait.jpg");
+    std::fs::write(&path, file).unwrap();
+    let rgb = mhi_data::read_rgb(&path).unwrap();
+    assert_eq!(rgb.dimensions(), (4, 6), "the photo is turned upright");
+    // Turned clockwise, the stored left half (red) is now on top.
+    assert!(rgb.get_pixel(2, 0).0[0] > 200 && rgb.get_pixel(2, 5).0[2] > 200);
+}

@@ -25,6 +25,16 @@ pub enum Error {
         /// The tolerance that was applied.
         tolerance: f64,
     },
+    /// A matrix that is orthonormal but has determinant −1: a mirror, not a rotation.
+    #[error(
+        "{what} is a reflection, not a rotation (det = {determinant:.6}): a left-handed frame or one axis flipped; negate one axis of the pose (both its rotation row and its translation entry) to make it right-handed"
+    )]
+    Reflection {
+        /// Which input.
+        what: &'static str,
+        /// The determinant (close to −1).
+        determinant: f64,
+    },
     /// Intrinsics that cannot describe a pinhole camera.
     #[error("invalid intrinsics: {reason}")]
     InvalidIntrinsics {

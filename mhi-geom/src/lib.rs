@@ -60,7 +60,9 @@ pub use homography::{
 };
 pub use intrinsics::{Intrinsics, pixel_center};
 pub use plane::{NormalSet, Plane, UNIT_TOLERANCE, depths_linear_in_disparity, validate_normal};
-pub use pose::{ROTATION_TOLERANCE, RigidTransform, validate_rotation};
+pub use pose::{
+    FILE_ROTATION_TOLERANCE, ROTATION_TOLERANCE, RigidTransform, rotation_error, validate_rotation,
+};
 pub use rotation::{rotation_angle_deg, rotation_angle_rad};
 
 /// Re-export of glam so users need not pin the same version themselves.

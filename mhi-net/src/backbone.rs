@@ -78,13 +78,24 @@ impl Backbone {
     pub fn load(dir: &Path, net: Net, device: &Device) -> crate::Result<Self> {
         let path = dir.join(format!("{}.safetensors", net.file_stem()));
         let bytes = std::fs::read(&path).map_err(|e| {
-            Error::Config(format!(
-                "{}: {e}; the pretrained weights are not there",
+            Error::Config(match e.kind() {
+                std::io::ErrorKind::NotFound => format!(
+                    "{}: the pretrained weights are not there (`cargo xtask weights` fetches them)",
+                    path.display()
+                ),
+                std::io::ErrorKind::PermissionDenied => format!(
+                    "{}: the weights are there but cannot be read (permission denied); fix the file's permissions",
+                    path.display()
+                ),
+                _ => format!("{}: cannot read the weights: {e}", path.display()),
+            })
+        })?;
+        let st = safetensors::SafeTensors::deserialize(&bytes).map_err(|e| {
+            Error::Checkpoint(format!(
+                "{}: the cached weights are damaged or truncated ({e}); `cargo xtask weights --force` fetches them again",
                 path.display()
             ))
         })?;
-        let st = safetensors::SafeTensors::deserialize(&bytes)
-            .map_err(|e| Error::Checkpoint(format!("{}: {e}", path.display())))?;
         let mut arrays: BTreeMap<String, (Vec<usize>, Vec<f32>)> = BTreeMap::new();
         for (name, view) in st.tensors() {
             if view.dtype() != safetensors::Dtype::F32 {

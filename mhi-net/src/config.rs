@@ -267,6 +267,7 @@ impl TrainConfig {
     }
 
     pub(crate) fn validate(&self) -> crate::Result<()> {
+        self.check_sizes()?;
         self.normal_set()?;
         let m = self.size_multiple();
         if !(self.width as usize).is_multiple_of(m) || !(self.height as usize).is_multiple_of(m) {
@@ -369,6 +370,65 @@ impl TrainConfig {
             return Err(Error::Config("checkpoint_every must be at least 1".into()));
         }
         Ok(())
+    }
+
+    /// Every size that allocates, checked against what a model can sensibly have before
+    /// anything is allocated: a config.json with absurd numbers is an error naming the field,
+    /// not an allocation of gigabytes.
+    fn check_sizes(&self) -> crate::Result<()> {
+        let unet = &self.stage1.unet;
+        let checks: [(&str, usize, usize, usize); 11] = [
+            ("width", self.width as usize, 1, 4096),
+            ("height", self.height as usize, 1, 4096),
+            ("planes", self.planes, 1, 256),
+            ("stage1.normals", self.stage1.normals, 1, 16),
+            ("stage1.scale", self.stage1.scale, 1, 16),
+            ("stage1.unet.width", unet.width, 1, 256),
+            ("stage1.unet.levels", unet.levels, 0, 6),
+            ("stage1.unet.in_channels", unet.in_channels, 1, 64),
+            ("stage1.unet.dilations (count)", unet.dilations.len(), 0, 8),
+            ("blend.width", self.blend.width, 1, 256),
+            ("blend.levels", self.blend.levels, 0, 6),
+        ];
+        for (name, v, lo, hi) in checks {
+            if !(lo..=hi).contains(&v) {
+                return Err(Error::Config(format!(
+                    "{name} = {v} is outside [{lo}, {hi}]: not a model this project can build (a damaged or foreign config.json?)"
+                )));
+            }
+        }
+        if let Some(d) = unet.dilations.iter().find(|d| !(1..=64).contains(*d)) {
+            return Err(Error::Config(format!(
+                "stage1.unet.dilations holds {d}: each must lie in [1, 64]"
+            )));
+        }
+        Ok(())
+    }
+
+    /// A fingerprint of everything that shapes the networks or what their weights mean (the
+    /// networks' configs, the grid, the prior), stored with every checkpoint: weights of another
+    /// model whose tensors happen to have the same shapes are refused instead of loaded.
+    pub fn fingerprint(&self) -> String {
+        let v = serde_json::json!([
+            self.stage1,
+            self.blend,
+            self.planes,
+            self.near,
+            self.far,
+            self.prior,
+            self.prior_window_radius,
+            self.prior_temperature,
+            self.prior_invalid_cost,
+            self.prior_clamp,
+        ]);
+        // FNV-1a, 64 bits: stable across builds and platforms.
+        let hash = v
+            .to_string()
+            .bytes()
+            .fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
+                (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+            });
+        format!("{hash:016x}")
     }
 }
 

@@ -83,14 +83,32 @@ impl RunDir {
     pub fn config(&self) -> crate::Result<TrainConfig> {
         let p = self.config_path();
         let text = read(&p)?;
-        TrainConfig::from_json(&text, &p)
+        let config = TrainConfig::from_json(&text, &p)?;
+        config
+            .validate()
+            .map_err(|e| Error::Config(format!("{}: {e}", p.display())))?;
+        Ok(config)
     }
 
     /// The current checkpoint.
+    ///
+    /// Its directory must be a checkpoint folder of this run (`ckpt-NNNNNNN`): a `latest.json`
+    /// that points anywhere else (`..`, an absolute path) is refused, never followed.
     pub fn latest(&self) -> crate::Result<Latest> {
         let p = self.latest_path();
-        serde_json::from_str(&read(&p)?)
-            .map_err(|e| Error::Checkpoint(format!("{}: {e}", p.display())))
+        let latest: Latest = serde_json::from_str(&read(&p)?)
+            .map_err(|e| Error::Checkpoint(format!("{}: {e}", p.display())))?;
+        let d = &latest.dir;
+        let plain =
+            d.len() == 12 && d.starts_with("ckpt-") && d[5..].bytes().all(|b| b.is_ascii_digit());
+        if !plain {
+            return Err(Error::Checkpoint(format!(
+                "{}: names the checkpoint folder {:?}, which is not one of this run's (ckpt-NNNNNNN inside the run); refusing to follow it",
+                p.display(),
+                mhi_data::sanitize::for_terminal(d)
+            )));
+        }
+        Ok(latest)
     }
 
     /// The rows of `val.csv` (empty when the file is missing); a malformed row is an error
@@ -128,6 +146,7 @@ impl RunDir {
 }
 
 fn read(p: &Path) -> crate::Result<String> {
+    mhi_data::check_regular_file(p, "run file", 64 << 20).map_err(|e| Error::Data(Box::new(e)))?;
     std::fs::read_to_string(p).map_err(|e| Error::Io {
         path: p.to_path_buf(),
         source: e,

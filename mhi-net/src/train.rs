@@ -83,6 +83,8 @@ pub struct Trainer {
     step: usize,
     started: Instant,
     elapsed_before: f64,
+    /// The run folder's writer lock (see [`mhi_data::output`]): one trainer per run.
+    _lock: Option<mhi_data::output::DirLock>,
 }
 
 fn io(path: &Path, e: std::io::Error) -> Error {
@@ -90,6 +92,13 @@ fn io(path: &Path, e: std::io::Error) -> Error {
         path: path.to_path_buf(),
         source: e,
     }
+}
+
+/// The kind of output a run folder is (its [`mhi_data::output::OWNER_MARKER`]).
+pub const RUN_KIND: &str = "training run";
+
+fn data_error(e: mhi_data::Error) -> Error {
+    Error::Data(Box::new(e))
 }
 
 fn write_atomic(path: &Path, bytes: &[u8]) -> crate::Result<()> {
@@ -122,8 +131,11 @@ impl Trainer {
         // The data is opened (and the data sources filled in) before anything is written, so a
         // start that fails leaves no half-made run behind.
         let (stage1, blend) = init_models(&config, &device);
-        let t = Self::assemble(config, dir, data_root, device, stage1, blend, loss, 0, 0.0)?;
-        std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
+        let mut t = Self::assemble(config, dir, data_root, device, stage1, blend, loss, 0, 0.0)?;
+        // The folder must be new, empty, or a run folder whose start was interrupted: never
+        // one holding the user's files.
+        let (_, lock, _) = mhi_data::output::claim_dir(dir, RUN_KIND).map_err(data_error)?;
+        t._lock = Some(lock);
         write_atomic(
             &RunDir::new(dir).config_path(),
             serde_json::to_string_pretty(&t.config)
@@ -132,6 +144,7 @@ impl Trainer {
         )?;
         write_atomic(&RunDir::new(dir).log_path(), CSV_HEADER.as_bytes())?;
         write_atomic(&RunDir::new(dir).val_path(), VAL_CSV_HEADER.as_bytes())?;
+        mhi_data::output::mark_dir(dir, RUN_KIND, true).map_err(data_error)?;
         // The training curve starts at the untrained model.
         t.log_validation()?;
         Ok(t)
@@ -147,6 +160,15 @@ impl Trainer {
     ) -> crate::Result<Self> {
         let run = RunDir::new(dir);
         let cfg_path = run.config_path();
+        // A run made before folders were marked: recognisably a run (its config and checkpoint
+        // pointer parse), so it is adopted.
+        if mhi_data::output::read_marker(dir).is_none()
+            && run.config().is_ok()
+            && run.latest().is_ok()
+        {
+            mhi_data::output::mark_dir(dir, RUN_KIND, true).map_err(data_error)?;
+        }
+        let (_, lock, _) = mhi_data::output::claim_dir(dir, RUN_KIND).map_err(data_error)?;
         let config = run.config()?;
         config.validate()?;
         // Every kind named: a new one cannot fall through to another loss on resume.
@@ -224,6 +246,7 @@ impl Trainer {
                 .collect();
             write_atomic(&log, kept.as_bytes())?;
         }
+        t._lock = Some(lock);
         Ok(t)
     }
 
@@ -266,6 +289,7 @@ impl Trainer {
             step,
             started: Instant::now(),
             elapsed_before,
+            _lock: None,
         })
     }
 
@@ -578,6 +602,7 @@ impl Trainer {
         let state = CheckpointState {
             step: self.step,
             elapsed_s: self.elapsed_s(),
+            config_fingerprint: Some(self.config.fingerprint()),
         };
         write_atomic(
             &tmp.join("state.json"),
@@ -602,7 +627,10 @@ impl Trainer {
         if let Ok(rd) = std::fs::read_dir(&self.dir) {
             for e in rd.flatten() {
                 let fname = e.file_name().to_string_lossy().into_owned();
-                if fname.starts_with("ckpt-") && fname != name {
+                let ours = fname.len() == 12
+                    && fname.starts_with("ckpt-")
+                    && fname[5..].bytes().all(|b| b.is_ascii_digit());
+                if ours && fname != name {
                     let _ = std::fs::remove_dir_all(e.path());
                 }
             }
@@ -817,6 +845,9 @@ pub const VAL_CSV_HEADER: &str = "step,elapsed_s,psnr_learned,psnr_soft\n";
 struct CheckpointState {
     step: usize,
     elapsed_s: f64,
+    /// [`TrainConfig::fingerprint`] of the run that wrote it (absent in older checkpoints).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    config_fingerprint: Option<String>,
 }
 
 /// The two networks of the checkpoint directory `ck` (`stage1.bpk`, `blend.bpk`), shaped by
@@ -827,6 +858,18 @@ pub(crate) fn load_networks(
     device: &Device,
 ) -> crate::Result<(Stage1, BlendNet)> {
     let load = |what: &str| ck.join(format!("{what}.bpk"));
+    let state_path = ck.join("state.json");
+    if let Ok(text) = std::fs::read_to_string(&state_path)
+        && let Ok(state) = serde_json::from_str::<CheckpointState>(&text)
+        && let Some(f) = state.config_fingerprint
+        && f != config.fingerprint()
+    {
+        return Err(Error::Checkpoint(format!(
+            "{}: does not match this run's config.json: it was written by a run with another configuration (fingerprint {f}, this config.json's {}), so its weights would load but mean something else; was config.json edited, or does the checkpoint come from another run?",
+            ck.display(),
+            config.fingerprint()
+        )));
+    }
     let stage1 = config
         .stage1
         .init(device)

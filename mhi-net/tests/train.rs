@@ -137,10 +137,16 @@ fn resume_continues_exactly() {
         .unwrap()
         .replace("\"width\": 4", "\"width\": 8");
     std::fs::write(&cfg, text).unwrap();
+    // One trainer per run folder: the resumed one lets go of it first.
+    drop(b);
     let err = Trainer::resume(&d.path().join("b"), d.path(), None, device)
         .err()
         .expect("mismatched checkpoint");
-    assert!(err.to_string().contains("stage1.bpk"), "{err}");
+    assert!(
+        err.to_string()
+            .contains("does not match this run's config.json"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -175,6 +181,16 @@ fn initial_weights_depend_on_the_seed_alone_and_checkpoints_round_trip() {
     );
     let mut a = a;
     a.checkpoint().unwrap();
+    // A second trainer on a run folder in use is refused, naming the first's process.
+    let busy = Trainer::resume(&d.path().join("a"), d.path(), None, device.clone())
+        .err()
+        .expect("a second writer");
+    assert!(
+        busy.to_string()
+            .contains(&format!("process {} is writing", std::process::id())),
+        "{busy}"
+    );
+    drop(a);
     let c = Trainer::resume(&d.path().join("a"), d.path(), None, device.clone()).unwrap();
     let oc = outputs(&c);
     let diff = oa

@@ -108,12 +108,47 @@ impl ScenePlan {
 /// # Errors
 /// When a view's weights do not have `N × H × W` entries.
 pub fn analyse(mhi: &Mhi, targets: &[(&Camera, &[f32])], prune: Prune) -> Result<ScenePlan> {
-    let (n, d) = (mhi.n(), mhi.d());
-    let normal_share = prune.normal_share();
-    let mut kept_by_some = vec![false; n];
-    let mut max_weight = vec![0.0_f32; n];
-    let mut dropped_worst = 0.0_f32;
+    let mut views = ViewsSeen::new(mhi, prune);
     for (cam, w) in targets {
+        views.add(cam, w)?;
+    }
+    views.finish(mhi)
+}
+
+/// [`analyse`] one view at a time, so that a plan over any number of views holds one view's
+/// weights at a time: [`ViewsSeen::add`] each view, then [`ViewsSeen::finish`].
+#[derive(Debug, Clone)]
+pub struct ViewsSeen {
+    n: usize,
+    prune: Prune,
+    any: bool,
+    count: usize,
+    kept_by_some: Vec<bool>,
+    max_weight: Vec<f32>,
+    dropped_worst: f32,
+}
+
+impl ViewsSeen {
+    /// No view seen yet, for `mhi` within `prune`'s budget.
+    pub fn new(mhi: &Mhi, prune: Prune) -> Self {
+        let n = mhi.n();
+        Self {
+            n,
+            prune,
+            any: false,
+            count: 0,
+            kept_by_some: vec![false; n],
+            max_weight: vec![0.0; n],
+            dropped_worst: 0.0,
+        }
+    }
+
+    /// Take one view with its blend weights (`N × H × W`).
+    ///
+    /// # Errors
+    /// When the weights do not have `N × H × W` entries.
+    pub fn add(&mut self, cam: &Camera, w: &[f32]) -> Result<()> {
+        let n = self.n;
         let px = cam.width as usize * cam.height as usize;
         if w.len() != n * px {
             return Err(Error::InvalidInput(format!(
@@ -124,112 +159,130 @@ pub fn analyse(mhi: &Mhi, targets: &[(&Camera, &[f32])], prune: Prune) -> Result
                 n * px
             )));
         }
-        let (active, dropped) = normals_to_drop(w, n, px, normal_share);
+        let (active, dropped) = normals_to_drop(w, n, px, self.prune.normal_share());
         for i in 0..n {
-            kept_by_some[i] |= active[i];
-            max_weight[i] = w[i * px..(i + 1) * px]
+            self.kept_by_some[i] |= active[i];
+            self.max_weight[i] = w[i * px..(i + 1) * px]
                 .iter()
-                .fold(max_weight[i], |m, v| m.max(*v));
+                .fold(self.max_weight[i], |m, v| m.max(*v));
         }
-        dropped_worst = dropped_worst.max(dropped);
+        self.dropped_worst = self.dropped_worst.max(dropped);
+        self.any = true;
+        self.count += 1;
+        Ok(())
     }
-    // Every view's layer share is at least this one (they dropped no more weight than the
-    // worst), so what the plan leaves out, every view's render leaves out too.
-    let (share, stop) = prune.shares_after(dropped_worst);
-    if targets.is_empty() {
-        kept_by_some.fill(true);
-    }
-    let depths = mhi.depths().to_vec();
-    let ref_px = mhi.reference().width as usize * mhi.reference().height as usize;
-    let mut per_normal = Vec::with_capacity(n);
-    let mut layers_kept = 0;
-    let mut mass_worst = 0.0_f32;
-    let mut kept_layers_of = Vec::with_capacity(n);
-    for i in 0..n {
-        let (skip, mass) = layers_to_skip(mhi, i, |_| true, share);
-        let empty = (1..d).filter(|&j| mhi.layer_max_alpha(i, j) == 0.0).count();
-        let skipped = skip.iter().filter(|s| **s).count();
-        let dropped = !kept_by_some[i];
-        let kept: Vec<usize> = (1..d).filter(|&j| !skip[j]).collect();
-        let occupied = (!kept.is_empty()).then(|| {
-            let ds: Vec<f64> = kept.iter().map(|&j| depths[j]).collect();
-            [
-                ds.iter().cloned().fold(f64::INFINITY, f64::min),
-                ds.iter().cloned().fold(0.0, f64::max),
-            ]
-        });
-        let reason = if dropped {
-            format!(
-                "left out: its blend weight is at most {:.5} in every view, within the normal share {normal_share:.5}",
-                max_weight[i]
-            )
-        } else {
-            mass_worst = mass_worst.max(mass);
-            layers_kept += d - skipped;
-            kept_layers_of.push((i, skip.clone()));
-            format!(
-                "kept (weight up to {:.3}); {skipped} of {} layers left out ({empty} empty), their alphas summing to {mass:.5}; {}",
-                max_weight[i],
-                d,
-                match occupied {
-                    Some([a, b]) => format!("occupied depths {a:.3} to {b:.3}"),
-                    None => "only the far plane is occupied".into(),
-                }
-            )
-        };
-        let nv = mhi.normals().normals()[i];
-        per_normal.push(NormalUse {
-            index: i,
-            normal: [nv.x, nv.y, nv.z],
-            max_weight: max_weight[i],
-            dropped,
-            layers_empty: empty,
-            layers_skipped: skipped,
-            skipped_mass: mass,
-            occupied_depths: occupied,
-            kept_depths: if dropped {
-                Vec::new()
+
+    /// The plan for every view added.
+    ///
+    /// # Errors
+    /// Never for a consistent MHI (the signature leaves room for the layer analysis).
+    pub fn finish(self, mhi: &Mhi) -> Result<ScenePlan> {
+        let prune = self.prune;
+        let (n, d) = (mhi.n(), mhi.d());
+        let normal_share = prune.normal_share();
+        let mut kept_by_some = self.kept_by_some;
+        let max_weight = self.max_weight;
+        let dropped_worst = self.dropped_worst;
+        let no_views = !self.any;
+        let count = self.count;
+        // Every view's layer share is at least this one (they dropped no more weight than the
+        // worst), so what the plan leaves out, every view's render leaves out too.
+        let (share, stop) = prune.shares_after(dropped_worst);
+        if no_views {
+            kept_by_some.fill(true);
+        }
+        let depths = mhi.depths().to_vec();
+        let ref_px = mhi.reference().width as usize * mhi.reference().height as usize;
+        let mut per_normal = Vec::with_capacity(n);
+        let mut layers_kept = 0;
+        let mut mass_worst = 0.0_f32;
+        let mut kept_layers_of = Vec::with_capacity(n);
+        for i in 0..n {
+            let (skip, mass) = layers_to_skip(mhi, i, |_| true, share);
+            let empty = (1..d).filter(|&j| mhi.layer_max_alpha(i, j) == 0.0).count();
+            let skipped = skip.iter().filter(|s| **s).count();
+            let dropped = !kept_by_some[i];
+            let kept: Vec<usize> = (1..d).filter(|&j| !skip[j]).collect();
+            let occupied = (!kept.is_empty()).then(|| {
+                let ds: Vec<f64> = kept.iter().map(|&j| depths[j]).collect();
+                [
+                    ds.iter().cloned().fold(f64::INFINITY, f64::min),
+                    ds.iter().cloned().fold(0.0, f64::max),
+                ]
+            });
+            let reason = if dropped {
+                format!(
+                    "left out: its blend weight is at most {:.5} in every view, within the normal share {normal_share:.5}",
+                    max_weight[i]
+                )
             } else {
-                (0..d).filter(|&j| !skip[j]).collect()
-            },
-            reason,
-        });
-    }
-    // Reference pixels with nothing in front of the far plane in any kept normal.
-    let mut background = 0usize;
-    for p in 0..ref_px {
-        let front: f32 = kept_layers_of
-            .iter()
-            .flat_map(|(i, skip)| {
-                (1..d)
-                    .filter(move |&j| !skip[j])
-                    .map(move |j| mhi.alpha_layer(*i, j)[p])
-            })
-            .sum();
-        if front <= share {
-            background += 1;
+                mass_worst = mass_worst.max(mass);
+                layers_kept += d - skipped;
+                kept_layers_of.push((i, skip.clone()));
+                format!(
+                    "kept (weight up to {:.3}); {skipped} of {} layers left out ({empty} empty), their alphas summing to {mass:.5}; {}",
+                    max_weight[i],
+                    d,
+                    match occupied {
+                        Some([a, b]) => format!("occupied depths {a:.3} to {b:.3}"),
+                        None => "only the far plane is occupied".into(),
+                    }
+                )
+            };
+            let nv = mhi.normals().normals()[i];
+            per_normal.push(NormalUse {
+                index: i,
+                normal: [nv.x, nv.y, nv.z],
+                max_weight: max_weight[i],
+                dropped,
+                layers_empty: empty,
+                layers_skipped: skipped,
+                skipped_mass: mass,
+                occupied_depths: occupied,
+                kept_depths: if dropped {
+                    Vec::new()
+                } else {
+                    (0..d).filter(|&j| !skip[j]).collect()
+                },
+                reason,
+            });
         }
+        // Reference pixels with nothing in front of the far plane in any kept normal.
+        let mut background = 0usize;
+        for p in 0..ref_px {
+            let front: f32 = kept_layers_of
+                .iter()
+                .flat_map(|(i, skip)| {
+                    (1..d)
+                        .filter(move |&j| !skip[j])
+                        .map(move |j| mhi.alpha_layer(*i, j)[p])
+                })
+                .sum();
+            if front <= share {
+                background += 1;
+            }
+        }
+        let colour_per_layer = match mhi.color() {
+            LayerColor::Shared(_) => 0,
+            LayerColor::PerLayer(_) => 3,
+        };
+        let shared_colour = if colour_per_layer == 0 {
+            3 * ref_px * 4
+        } else {
+            0
+        };
+        let layer_bytes = ref_px * 4 * (1 + colour_per_layer);
+        Ok(ScenePlan {
+            budget: prune.budget,
+            views: count,
+            normals: n,
+            planes: d,
+            per_normal,
+            layers_kept,
+            background_fraction: background as f64 / ref_px.max(1) as f64,
+            bytes_exact: shared_colour + n * d * layer_bytes,
+            bytes_kept: shared_colour + layers_kept * layer_bytes,
+            bound: mass_worst + dropped_worst + stop,
+        })
     }
-    let colour_per_layer = match mhi.color() {
-        LayerColor::Shared(_) => 0,
-        LayerColor::PerLayer(_) => 3,
-    };
-    let shared_colour = if colour_per_layer == 0 {
-        3 * ref_px * 4
-    } else {
-        0
-    };
-    let layer_bytes = ref_px * 4 * (1 + colour_per_layer);
-    Ok(ScenePlan {
-        budget: prune.budget,
-        views: targets.len(),
-        normals: n,
-        planes: d,
-        per_normal,
-        layers_kept,
-        background_fraction: background as f64 / ref_px.max(1) as f64,
-        bytes_exact: shared_colour + n * d * layer_bytes,
-        bytes_kept: shared_colour + layers_kept * layer_bytes,
-        bound: mass_worst + dropped_worst + stop,
-    })
 }

@@ -82,10 +82,11 @@ pub fn ensure_synthetic(root: &Path) -> anyhow::Result<()> {
         root.display()
     );
     let config = SynthConfig::default();
-    std::fs::create_dir_all(root).with_context(|| format!("cannot create {}", root.display()))?;
+    let staged = mhi_data::output::StagedDir::begin(root, mhi_data::SYNTH_KIND, interrupted)?;
     let pb = crate::progress::bar((config.scenes * config.frames) as u64, "synth");
-    mhi_data::generate(&config, root, &|| pb.inc(1))?;
+    mhi_data::generate(&config, staged.path(), &|| pb.inc(1))?;
     pb.finish_and_clear();
+    staged.commit()?;
     Ok(())
 }
 
@@ -213,4 +214,68 @@ impl PlaneArgs {
     pub fn depths(&self) -> anyhow::Result<Vec<f64>> {
         self.range.depths(self.planes)
     }
+
+    /// Whether any of the four differs from its default (so that a command where they do not
+    /// apply can say so rather than ignore them).
+    pub fn given(&self) -> bool {
+        self.normals != 5 || self.planes != 32 || self.range.near != 1.0 || self.range.far != 100.0
+    }
+}
+
+/// The most orbit frames a GIF takes: a minute at the orbit's 60 ms a frame.
+pub const MAX_ORBIT_FRAMES: usize = 1000;
+
+/// Refuse an orbit whose frames would not fit, with what it would cost: every frame is kept
+/// (enlarged to at least 256 px wide) until the GIF is encoded.
+pub fn check_orbit_frames(frames: usize) -> anyhow::Result<()> {
+    if frames > MAX_ORBIT_FRAMES {
+        anyhow::bail!(
+            "--orbit-frames {frames}: the orbit GIF keeps every frame in memory (about {:.1} GB for {frames} frames at 256 px wide) and plays for {:.0} s; at most {MAX_ORBIT_FRAMES} frames ({:.0} s)",
+            frames as f64 * 256.0 * 256.0 * 4.0 * 2.0 / 1e9,
+            frames as f64 * 0.06,
+            MAX_ORBIT_FRAMES as f64 * 0.06
+        );
+    }
+    Ok(())
+}
+
+/// The most triplets drawn from one sequence: far more than any sequence supplies distinct ones.
+pub const MAX_PER_SEQUENCE: usize = 10_000;
+
+/// Draw the evaluation triplets (see [`mhi_data::TripletIndex::sample`]), refusing absurd counts
+/// and warning for every sequence that could not supply distinct triplets enough.
+pub fn sample_index(
+    ds: &mhi_data::Dataset,
+    per_sequence: usize,
+    seed: u64,
+) -> anyhow::Result<mhi_data::TripletIndex> {
+    if per_sequence > MAX_PER_SEQUENCE {
+        anyhow::bail!(
+            "--per-sequence {per_sequence}: at most {MAX_PER_SEQUENCE} triplets a sequence (a sequence of n frames supplies far fewer distinct ones, and each costs a render of every method)"
+        );
+    }
+    let index = mhi_data::TripletIndex::sample(ds, per_sequence, seed);
+    for (name, got) in &index.shortfalls {
+        eprintln!(
+            "warning: sequence {} supplies only {got} distinct triplets, not the {per_sequence} asked; using {got} (repeats would make the intervals too narrow)",
+            mhi_data::sanitize::for_terminal(name)
+        );
+    }
+    Ok(index)
+}
+
+/// The most synthetic frames one `synth` makes (a million: about 50 GB of PNGs at 256 × 256).
+pub const MAX_SYNTH_FRAMES: usize = 1_000_000;
+
+/// Refuse a synthetic set too large to make, with what it would cost.
+pub fn check_synth_count(scenes: usize, frames: usize) -> anyhow::Result<()> {
+    let total = scenes.saturating_mul(frames);
+    if total > MAX_SYNTH_FRAMES {
+        anyhow::bail!(
+            "--scenes {scenes} x --frames {frames} = {total} frames: at most {MAX_SYNTH_FRAMES} (about {:.0} hours on 2 cores at 25 frames/s and {:.0} GB of PNGs at 256 x 256)",
+            total as f64 / 25.0 / 3600.0,
+            total as f64 * 60e3 / 1e9
+        );
+    }
+    Ok(())
 }

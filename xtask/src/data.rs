@@ -1,11 +1,12 @@
 //! `synth` and `triplets`: making and inspecting datasets.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, bail};
 use clap::Args;
-use mhi_data::{Dataset, RotationBin, SynthConfig, TripletIndex, TripletKind};
+use mhi_data::output::StagedDir;
+use mhi_data::{Dataset, RotationBin, SynthConfig, TripletKind};
 
 use crate::common::parse_size;
 
@@ -37,13 +38,10 @@ pub struct SynthArgs {
     /// Samples per pixel along each axis (anti-aliasing).
     #[arg(long, default_value_t = 2)]
     pub supersample: u32,
-    /// Replace an existing dataset in --out (otherwise a non-empty split is refused).
+    /// Replace a synthetic dataset made before in --out (a folder holding anything else is
+    /// refused with or without it).
     #[arg(long)]
     pub overwrite: bool,
-}
-
-fn non_empty_dir(p: &Path) -> bool {
-    std::fs::read_dir(p).is_ok_and(|mut d| d.next().is_some())
 }
 
 /// `cargo xtask synth`.
@@ -58,28 +56,24 @@ pub fn synth(a: &SynthArgs) -> anyhow::Result<()> {
         val_fraction: a.val_fraction,
         supersample: a.supersample,
     };
+    crate::common::check_synth_count(a.scenes, a.frames)?;
     if a.out.join(mhi_data::INCOMPLETE_MARKER).exists() && !a.overwrite {
         bail!(
             "{} holds an incomplete synthetic set (an earlier synth was interrupted); pass --overwrite to generate it again",
             a.out.display()
         );
     }
-    for split in ["train", "val", "test"] {
-        let d = a.out.join(split);
-        if non_empty_dir(&d) && !a.overwrite {
-            bail!(
-                "{} already holds data; pass --overwrite to replace it, or choose another --out",
-                d.display()
-            );
-        }
+    // Built beside --out and swapped into place whole; a folder of the user's is refused.
+    let staged = StagedDir::begin(&a.out, mhi_data::SYNTH_KIND, a.overwrite)?;
+    for n in staged.notes() {
+        println!("note: {n}");
     }
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("cannot create output directory {}", a.out.display()))?;
     let pb = crate::progress::bar((config.scenes * config.frames) as u64, "rendering");
     let t0 = Instant::now();
-    let summary = mhi_data::generate(&config, &a.out, &|| pb.inc(1))
+    let summary = mhi_data::generate(&config, staged.path(), &|| pb.inc(1))
         .with_context(|| format!("generating synthetic scenes in {}", a.out.display()))?;
     pb.finish_and_clear();
+    staged.commit()?;
     let secs = t0.elapsed().as_secs_f64();
     println!(
         "wrote {} frames of {} scenes ({} train, {} val, {} test) at {}x{} to {} in {:.1} s ({:.1} frames/s)",
@@ -122,7 +116,10 @@ pub struct TripletsArgs {
 pub fn triplets(a: &TripletsArgs) -> anyhow::Result<()> {
     let ds = Dataset::open_many(&a.data, &a.split, 3)?;
     for w in &ds.warnings {
-        eprintln!("warning: {w}");
+        eprintln!(
+            "warning: {}",
+            mhi_data::sanitize::for_terminal(&w.to_string())
+        );
     }
     let frames: usize = ds.sequences.iter().map(|s| s.frames.len()).sum();
     println!(
@@ -156,7 +153,7 @@ pub fn triplets(a: &TripletsArgs) -> anyhow::Result<()> {
     for s in &ds.sequences {
         println!(
             "  {}: {} frames, sampled as {}",
-            s.name,
+            mhi_data::sanitize::for_terminal(&s.name),
             s.frames.len(),
             match s.sampling() {
                 mhi_data::Sampling::Video => "video (clips of 10 frames, stride 3-10)",
@@ -164,7 +161,7 @@ pub fn triplets(a: &TripletsArgs) -> anyhow::Result<()> {
             }
         );
     }
-    let index = TripletIndex::sample(&ds, a.per_sequence, a.seed);
+    let index = crate::common::sample_index(&ds, a.per_sequence, a.seed)?;
     let counts = index.bin_counts();
     let interp = index
         .triplets

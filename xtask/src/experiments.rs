@@ -8,7 +8,7 @@ use anyhow::{Context, bail};
 use clap::Args;
 use glam::DVec3;
 use image::Rgb32FImage;
-use mhi_data::{Dataset, Fit, RotationBin, TripletIndex, load_frame, load_scene};
+use mhi_data::{Dataset, Fit, RotationBin, load_frame, load_scene};
 use mhi_geom::{BlendHeuristic, Camera, NormalSet, depths_linear_in_disparity};
 use mhi_net::{BlendChoice, MhiSource, ViewSynthesis};
 use mhi_render::{Blend, Prune, RenderOptions, SweepConfig, oracle_weights, render};
@@ -17,7 +17,7 @@ use serde::Serialize;
 use crate::common::{ensure_synthetic, error_map, save_png, truth_of};
 
 /// Options of `cargo xtask oracle`.
-#[derive(Args, Debug)]
+#[derive(Args, Debug, Clone)]
 pub struct OracleArgs {
     /// Synthetic dataset root (generated with the default `synth` settings if it has no test split).
     #[arg(long, default_value = "data/synth")]
@@ -106,9 +106,32 @@ struct Row {
 
 /// `cargo xtask oracle`.
 pub fn oracle(a: &OracleArgs) -> anyhow::Result<()> {
+    staged(&a.out, "oracle report", |out| {
+        let mut a = a.clone();
+        a.out = out.to_path_buf();
+        oracle_into(&a)
+    })?;
+    println!("report: {}", a.out.join("report.json").display());
+    Ok(())
+}
+
+/// Run `f` on a folder built beside `out` and swapped into place whole when it succeeds (an
+/// earlier output of the same kind is replaced; a folder of the user's is refused).
+fn staged(
+    out: &std::path::Path,
+    kind: &str,
+    f: impl FnOnce(&std::path::Path) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    let s = mhi_data::output::StagedDir::begin(out, kind, true)?;
+    f(s.path())?;
+    s.commit()?;
+    Ok(())
+}
+
+fn oracle_into(a: &OracleArgs) -> anyhow::Result<()> {
     ensure_synthetic(&a.data)?;
     let ds = Dataset::open(&a.data, "test", 3)?;
-    let index = TripletIndex::sample(&ds, a.per_sequence, a.seed);
+    let index = crate::common::sample_index(&ds, a.per_sequence, a.seed)?;
     let d32 = depths_linear_in_disparity(1.0, 100.0, 32)?;
     let d160 = depths_linear_in_disparity(1.0, 100.0, 160)?;
     let configs = vec![
@@ -299,7 +322,6 @@ pub fn oracle(a: &OracleArgs) -> anyhow::Result<()> {
     }
     let json = serde_json::to_vec_pretty(&rows)?;
     mhi_data::write_atomic(&a.out.join("report.json"), &json)?;
-    println!("report: {}", a.out.join("report.json").display());
     Ok(())
 }
 
@@ -344,7 +366,7 @@ fn best_per_pixel(candidates: &[Rgb32FImage], truth: &Rgb32FImage) -> Rgb32FImag
 }
 
 /// Options of `cargo xtask sweep`.
-#[derive(Args, Debug)]
+#[derive(Args, Debug, Clone)]
 pub struct SweepArgs {
     /// Dataset root in RealEstate10K layout.
     #[arg(long)]
@@ -383,6 +405,16 @@ pub struct SweepArgs {
 
 /// `cargo xtask sweep`.
 pub fn sweep(a: &SweepArgs) -> anyhow::Result<()> {
+    staged(&a.out, "sweep output", |out| {
+        let mut a = a.clone();
+        a.out = out.to_path_buf();
+        sweep_into(&a)
+    })?;
+    println!("images and summary.json in {}", a.out.display());
+    Ok(())
+}
+
+fn sweep_into(a: &SweepArgs) -> anyhow::Result<()> {
     let ds = Dataset::open(&a.data, &a.split, 3)?;
     let seq = match &a.seq {
         Some(name) => ds
@@ -523,6 +555,5 @@ pub fn sweep(a: &SweepArgs) -> anyhow::Result<()> {
         "  sweep MHI (soft blend): PSNR {sp:.2} dB  SSIM {ss:.4}  (build {build_ms:.0} ms, render {render_ms:.0} ms)"
     );
     println!("  nearest input ({nearest_name}):  PSNR {np:.2} dB  SSIM {ns:.4}");
-    println!("images and summary.json in {}", a.out.display());
     Ok(())
 }

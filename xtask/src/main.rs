@@ -109,10 +109,33 @@ fn keep_freed_memory() {
     }
 }
 
+/// The most threads `RAYON_NUM_THREADS` may ask for: each costs a stack and a share of every
+/// parallel buffer; far more than the cores only slows the work down.
+const MAX_THREADS: usize = 1024;
+
+/// Refuse a thread count the thread pool would abort on, before any work.
+fn check_environment() -> anyhow::Result<()> {
+    if let Ok(v) = std::env::var("RAYON_NUM_THREADS") {
+        match v.trim().parse::<usize>() {
+            Ok(n) if n <= MAX_THREADS => {}
+            _ => anyhow::bail!(
+                "RAYON_NUM_THREADS={:?}: expected a number of threads from 0 (one per core) to {MAX_THREADS}",
+                mhi_data::sanitize::for_terminal(&v)
+            ),
+        }
+    }
+    Ok(())
+}
+
 fn main() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     keep_freed_memory();
-    let result = match Task::parse() {
+    let task = Task::parse();
+    if let Err(e) = check_environment() {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+    let result = match task {
         Task::Synth(a) => data::synth(&a),
         Task::Triplets(a) => data::triplets(&a),
         Task::Oracle(a) => experiments::oracle(&a),
@@ -135,7 +158,12 @@ fn main() {
         Task::Export(a) => render::export(&a),
     };
     if let Err(e) = result {
-        eprintln!("error: {e:#}");
+        // Paths and names in the message come from the file system: no escapes reach the
+        // terminal.
+        eprintln!(
+            "error: {}",
+            mhi_data::sanitize::for_terminal(&format!("{e:#}"))
+        );
         std::process::exit(1);
     }
 }

@@ -125,7 +125,8 @@ pub struct TrainArgs {
     /// Soft). `none`: the paper's network, alphas from the cost volume alone.
     #[arg(long, value_enum, default_value_t = PriorArg::Sweep)]
     pub prior: PriorArg,
-    /// Training resolution WIDTHxHEIGHT (divisible by 4).
+    /// Training resolution WIDTHxHEIGHT: each side a multiple of 2^levels of the U-Nets, times
+    /// --stage1-scale (4 by default, 8 with --stage1-scale 2); the error names the multiple.
     #[arg(long, default_value = "64x64", value_parser = crate::common::parse_size)]
     pub size: (u32, u32),
     /// Channels of the first level of the stage-1 3D U-Net.

@@ -3,12 +3,14 @@
 //! and the cameras of the views to render on any further rows; an orbit GIF around the reference
 //! view is written too. The MHI comes from a trained run (`--run`) or the training-free sweep.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, bail};
 use burn::tensor::Device;
 use clap::Args;
+use mhi_data::output::StagedDir;
+use mhi_data::sanitize::for_terminal;
 use mhi_data::{CameraFile, Fit, Frame, load_frame};
 use mhi_geom::{BlendHeuristic, Camera};
 use mhi_net::{MhiSource, Model, ViewSynthesis};
@@ -45,8 +47,10 @@ pub struct RenderArgs {
     /// --far) instead of a trained model.
     #[arg(long)]
     pub sweep: bool,
-    /// Working size WIDTHxHEIGHT (photos are resized, intrinsics follow; multiples of 4 for a
-    /// run). Default: the reference photo's aspect with its longer side 256 (multiples of 4).
+    /// Working size WIDTHxHEIGHT (photos are resized, intrinsics follow). A trained model needs
+    /// each side a multiple of its U-Nets' multiple (8 for the pretrained model; the error names
+    /// it). Default: the reference photo's aspect with its longer side 256, rounded to that
+    /// multiple.
     #[arg(long, value_parser = crate::common::parse_size)]
     pub size: Option<(u32, u32)>,
     /// The sweep MHI's grid (with --sweep or without a model; a trained model keeps its own).
@@ -61,7 +65,8 @@ pub struct RenderArgs {
     /// Output directory (view_rowNNN.png per rendered camera row, orbit.gif).
     #[arg(long, default_value = "out/render")]
     pub out: PathBuf,
-    /// Replace images already in --out.
+    /// Replace a render (or viewer) this command wrote before in --out. A folder holding files
+    /// no mhi command made is refused with or without it.
     #[arg(long)]
     pub overwrite: bool,
     /// Render everything: leave nothing out (by default what the views do not need is left out
@@ -91,8 +96,11 @@ pub fn export(a: &RenderArgs) -> anyhow::Result<()> {
     run(a, Some(a.export.as_deref().unwrap_or(&a.out)), false)
 }
 
-fn run(a: &RenderArgs, export: Option<&std::path::Path>, views_too: bool) -> anyhow::Result<()> {
-    let file = CameraFile::read(&a.cameras)?;
+/// The most camera rows an exported viewer lists (each is a camera in its manifest).
+const MAX_VIEWER_VIEWS: usize = 10_000;
+
+/// Check the options against the camera file before anything is loaded or written.
+fn check_args(a: &RenderArgs, file: &CameraFile, views_too: bool) -> anyhow::Result<()> {
     let rows = file.rows.len();
     for (what, r) in [("--ref-row", a.ref_row), ("--src-row", a.src_row)] {
         if r == 0 || r > rows {
@@ -120,28 +128,48 @@ fn run(a: &RenderArgs, export: Option<&std::path::Path>, views_too: bool) -> any
             a.ref_row
         );
     }
-    let taken = views_too
-        && std::fs::read_dir(&a.out).is_ok_and(|d| {
-            d.flatten().any(|e| {
-                let n = e.file_name().to_string_lossy().into_owned();
-                n.starts_with("view_row") || n == "orbit.gif"
-            })
-        });
-    if taken && !a.overwrite {
+    if !(a.budget.is_finite() && a.budget >= 0.0 && a.budget <= 255.0) {
         bail!(
-            "{} already holds rendered views; pass --overwrite to replace them or choose another --out",
-            a.out.display()
+            "--budget {} must be a number of 8-bit levels in [0, 255] (1 by default)",
+            a.budget
         );
     }
-    if let Some(dir) = export
-        && dir.join("index.html").exists()
-        && !a.overwrite
-    {
+    if views_too {
+        crate::common::check_orbit_frames(a.orbit_frames)?;
+    }
+    if a.export.is_some() || !views_too {
+        let listed = rows - 2;
+        if listed > MAX_VIEWER_VIEWS {
+            bail!(
+                "{} lists {listed} views: an exported viewer lists at most {MAX_VIEWER_VIEWS} (each is a camera in its manifest); render the views without --export, or export with a shorter camera file",
+                a.cameras.display()
+            );
+        }
+    }
+    if !a.sweep && a.grid.given() && (a.run.is_some() || crate::models::pretrained().is_some()) {
         bail!(
-            "{} already holds an exported viewer; pass --overwrite to replace it or choose another folder",
-            dir.display()
+            "--normals, --planes, --near and --far set the training-free sweep's grid; a trained model (--run, or the pretrained one used without it) keeps its own: drop them, or pass --sweep"
         );
     }
+    Ok(())
+}
+
+/// Refuse an output folder inside the other: each is swapped into place whole, and the outer
+/// one's swap would take the inner one with it.
+fn check_apart(views: &Path, viewer: &Path) -> anyhow::Result<()> {
+    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let (v, w) = (abs(views), abs(viewer));
+    if v.starts_with(&w) || w.starts_with(&v) {
+        bail!(
+            "--out {} and --export {} lie one inside the other: give the viewer a folder of its own",
+            views.display(),
+            viewer.display()
+        );
+    }
+    Ok(())
+}
+
+fn load_model(a: &RenderArgs) -> anyhow::Result<Option<Model>> {
     let run = match (&a.run, a.sweep) {
         (Some(r), _) => Some(r.clone()),
         (None, true) => None,
@@ -160,33 +188,56 @@ fn run(a: &RenderArgs, export: Option<&std::path::Path>, views_too: bool) -> any
             p
         }
     };
-    let learned: Option<Model> = match &run {
-        Some(run) => Some(
-            Model::load(run, Device::flex())
-                .with_context(|| format!("loading the trained run {}", run.display()))?,
-        ),
-        None => None,
-    };
-    let ref_rgb = mhi_data::read_rgb(&a.reference)?;
+    run.map(|run| {
+        Model::load(&run, Device::flex())
+            .with_context(|| format!("loading the trained run {}", run.display()))
+    })
+    .transpose()
+}
+
+/// The working size: `--size`, or the reference photo's aspect with its longer side 256.
+fn working_size(a: &RenderArgs, learned: Option<&Model>) -> anyhow::Result<(u32, u32)> {
+    let (w, h) = mhi_data::read_rgb(&a.reference)?.dimensions();
     // A model's U-Nets need sides divisible by its multiple; the sweep by nothing (4 kept).
-    let multiple = learned
-        .as_ref()
-        .map_or(4, |m| m.config().size_multiple().max(4) as u32);
+    let multiple = learned.map_or(4, |m| m.config().size_multiple().max(4) as u32);
     let size = a.size.unwrap_or_else(|| {
-        let (w, h) = ref_rgb.dimensions();
         let s = 256.0 / f64::from(w.max(h));
         let r =
             |x: u32| ((f64::from(x) * s / f64::from(multiple)).round() as u32).max(1) * multiple;
         (r(w), r(h))
     });
-    if let Some(m) = &learned {
+    if let Some(m) = learned {
         m.check_size(size.0, size.1)?;
     }
-    let layers = match &learned {
+    let layers = match learned {
         Some(m) => m.normals().len() * m.depths().len() * 8,
         None => a.grid.normals * a.grid.planes,
     };
     crate::common::check_memory("--size", size.0, size.1, layers)?;
+    Ok(size)
+}
+
+fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result<()> {
+    let file = CameraFile::read(&a.cameras)?;
+    if let Some(w) = &file.rotation_warning {
+        eprintln!("warning: {}", for_terminal(w));
+    }
+    check_args(a, &file, views_too)?;
+    if let (true, Some(dir)) = (views_too, export) {
+        check_apart(&a.out, dir)?;
+    }
+    // Claimed before any work: a second writer, or a folder of the user's, stops us here.
+    let views_out = views_too
+        .then(|| StagedDir::begin(&a.out, "render", a.overwrite))
+        .transpose()?;
+    let viewer_out = export
+        .map(|d| StagedDir::begin(d, "viewer", a.overwrite))
+        .transpose()?;
+    for n in views_out.iter().chain(&viewer_out).flat_map(|s| s.notes()) {
+        println!("note: {n}");
+    }
+    let learned = load_model(a)?;
+    let size = working_size(a, learned.as_ref())?;
     let frame = |path: &PathBuf, row: usize| Frame {
         row: file.rows[row],
         path: path.clone(),
@@ -221,53 +272,26 @@ fn run(a: &RenderArgs, export: Option<&std::path::Path>, views_too: bool) -> any
         },
         t0.elapsed().as_secs_f64() * 1e3
     );
-    let out = if views_too {
-        a.out.clone()
-    } else {
-        export.unwrap_or(&a.out).to_path_buf()
+    // The listed views, one camera at a time: a camera file of any length costs one view.
+    let listed = || {
+        file.rows
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| *k + 1 != a.ref_row && *k + 1 != a.src_row)
+            .map(|(k, r)| {
+                let cam = r
+                    .camera(size.0, size.1)
+                    .with_context(|| format!("{}: camera row {}", a.cameras.display(), k + 1))?;
+                Ok((k + 1, cam))
+            })
     };
-    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
-    let targets: Vec<(usize, Camera)> = file
-        .rows
-        .iter()
-        .enumerate()
-        .filter(|(k, _)| *k + 1 != a.ref_row && *k + 1 != a.src_row)
-        .map(|(k, r)| {
-            let cam = r
-                .camera(size.0, size.1)
-                .with_context(|| format!("{}: camera row {}", a.cameras.display(), k + 1))?;
-            Ok((k + 1, cam))
-        })
-        .collect::<anyhow::Result<_>>()?;
+    let listed_count = file.rows.len() - 2;
     let baseline = (rf.camera.center_in_world() - sf.camera.center_in_world()).length();
     let orbit_cams = if a.orbit_frames > 0 && views_too {
-        let look_at = crate::views::median_depth(&mhi);
-        let (cams, deg) = orbit(
-            &rf.camera,
-            a.orbit_radius * baseline,
-            a.orbit_frames,
-            look_at,
-        )?;
-        match look_at {
-            Some(z) => println!(
-                "orbit: {} cameras on a circle of radius {:.3}, turned toward the median depth {z:.3} (rotation up to {deg:.1} deg)",
-                cams.len(),
-                a.orbit_radius * baseline
-            ),
-            None => println!(
-                "orbit: nothing in front of the far plane; the cameras translate without turning"
-            ),
-        }
-        cams
+        orbit_cameras(a, &mhi, &rf.camera, baseline)?
     } else {
         Vec::new()
     };
-    if !(a.budget.is_finite() && a.budget >= 0.0 && a.budget <= 255.0) {
-        bail!(
-            "--budget {} must be a number of 8-bit levels in [0, 255] (1 by default)",
-            a.budget
-        );
-    }
     let prune = if a.exact {
         Prune::NONE
     } else {
@@ -279,34 +303,36 @@ fn run(a: &RenderArgs, export: Option<&std::path::Path>, views_too: bool) -> any
         Some(_) if mhi.n() > 1 => BlendHeuristic::Avg,
         _ => BlendHeuristic::Soft,
     };
-    let all_cams: Vec<&Camera> = targets.iter().map(|(_, c)| c).chain(&orbit_cams).collect();
-    let weights: Vec<Vec<f32>> = all_cams
-        .iter()
-        .map(|c| heuristic_weights_for(mhi.normals(), &rf.camera, c, heuristic))
-        .collect();
-    let views: Vec<(&Camera, &[f32])> = all_cams
-        .iter()
-        .zip(&weights)
-        .map(|(c, w)| (*c, w.as_slice()))
-        .collect();
-    let plan = mhi_render::plan::analyse(&mhi, &views, prune)?;
-    mhi_data::write_atomic(
-        &out.join("plan.json"),
-        &serde_json::to_vec_pretty(&serde_json::json!({
-            "exact": a.exact,
-            "blend": if heuristic == BlendHeuristic::Avg { "learned (no normal left out: its weights come after the multi-normal images)" } else { "Soft" },
-            "plan": plan,
-        }))?,
-    )?;
+    let mut seen = mhi_render::plan::ViewsSeen::new(&mhi, prune);
+    let pb = crate::progress::bar((listed_count + orbit_cams.len()) as u64, "plan");
+    for cam in listed()
+        .map(|r| r.map(|(_, c)| c))
+        .chain(orbit_cams.iter().cloned().map(Ok))
+    {
+        let cam = cam?;
+        seen.add(
+            &cam,
+            &heuristic_weights_for(mhi.normals(), &rf.camera, &cam, heuristic),
+        )?;
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    let plan = seen.finish(&mhi)?;
+    let plan_json = serde_json::to_vec_pretty(&serde_json::json!({
+        "exact": a.exact,
+        "blend": if heuristic == BlendHeuristic::Avg { "learned (no normal left out: its weights come after the multi-normal images)" } else { "Soft" },
+        "plan": plan,
+    }))?;
     if a.explain {
         println!("{}", plan.explain());
     }
-    if let Some(dir) = export {
+    if let Some(out) = &viewer_out {
         let inputs = [
             ("reference photo", &rf.camera),
             ("source photo", &sf.camera),
         ];
-        let listed: Vec<_> = targets
+        let cams: Vec<(usize, Camera)> = listed().collect::<anyhow::Result<_>>()?;
+        let names: Vec<_> = cams
             .iter()
             .map(|(row, c)| (format!("camera row {row}"), c))
             .collect();
@@ -315,7 +341,40 @@ fn run(a: &RenderArgs, export: Option<&std::path::Path>, views_too: bool) -> any
         } else {
             "training-free plane sweep"
         };
-        crate::export::write_viewer(dir, &mhi, &plan, source, &inputs, &listed)?;
+        if !views_too {
+            mhi_data::write_atomic(&out.path().join("plan.json"), &plan_json)?;
+        }
+        crate::export::write_viewer(out.path(), &mhi, &plan, source, &inputs, &names)?;
+    }
+    let mut worst_bound = 0.0_f32;
+    if let Some(out) = &views_out {
+        mhi_data::write_atomic(&out.path().join("plan.json"), &plan_json)?;
+        let pb = crate::progress::bar((listed_count + orbit_cams.len()) as u64, "render");
+        for r in listed() {
+            let (row, cam) = r?;
+            let (img, stats) = view(&mhi, model, &cam, prune)?;
+            worst_bound = worst_bound.max(stats.bound);
+            let path = out.path().join(format!("view_row{row:03}.png"));
+            mhi_data::write_png(&path, &mhi_data::to_u8(&clipped(&img)))?;
+            pb.inc(1);
+        }
+        if !orbit_cams.is_empty() {
+            let mut frames = Vec::new();
+            for cam in &orbit_cams {
+                let (img, stats) = view(&mhi, model, cam, prune)?;
+                worst_bound = worst_bound.max(stats.bound);
+                frames.push(enlarge(
+                    &mhi_data::to_u8(&clipped(&img)),
+                    factor_for(img.width(), 256),
+                ));
+                pb.inc(1);
+            }
+            write_gif(&out.path().join("orbit.gif"), &frames, 60)?;
+        }
+        pb.finish_and_clear();
+    }
+    if let Some(out) = viewer_out {
+        let dir = out.commit()?;
         println!(
             "viewer: {} (open it in a browser; {} of {} layers kept)",
             dir.join("index.html").display(),
@@ -323,50 +382,53 @@ fn run(a: &RenderArgs, export: Option<&std::path::Path>, views_too: bool) -> any
             mhi.n() * mhi.d()
         );
     }
-    if !views_too {
-        return Ok(());
+    if let Some(out) = views_out {
+        let dir = out.commit()?;
+        println!(
+            "{listed_count} view(s){} in {}; {}",
+            if orbit_cams.is_empty() {
+                ""
+            } else {
+                " and orbit.gif"
+            },
+            dir.display(),
+            if a.exact {
+                "rendered exactly (--exact)".to_string()
+            } else {
+                format!(
+                    "no pixel moved by more than {:.2} 8-bit levels from what was left out (budget {}; --exact renders everything, --explain says what was left out)",
+                    worst_bound * 255.0,
+                    a.budget
+                )
+            }
+        );
     }
-    let pb = crate::progress::bar((targets.len() + a.orbit_frames) as u64, "render");
-    let mut worst_bound = 0.0_f32;
-    for (row, cam) in &targets {
-        let (img, stats) = view(&mhi, model, cam, prune)?;
-        worst_bound = worst_bound.max(stats.bound);
-        let path = a.out.join(format!("view_row{row:03}.png"));
-        mhi_data::write_png(&path, &mhi_data::to_u8(&clipped(&img)))?;
-        pb.inc(1);
-    }
-    if a.orbit_frames > 0 {
-        let mut frames = Vec::new();
-        for cam in &orbit_cams {
-            let (img, stats) = view(&mhi, model, cam, prune)?;
-            worst_bound = worst_bound.max(stats.bound);
-            frames.push(enlarge(
-                &mhi_data::to_u8(&clipped(&img)),
-                factor_for(img.width(), 256),
-            ));
-            pb.inc(1);
-        }
-        write_gif(&a.out.join("orbit.gif"), &frames, 60)?;
-    }
-    pb.finish_and_clear();
-    println!(
-        "{} view(s){} in {}; {}",
-        targets.len(),
-        if a.orbit_frames > 0 {
-            " and orbit.gif"
-        } else {
-            ""
-        },
-        a.out.display(),
-        if a.exact {
-            "rendered exactly (--exact)".to_string()
-        } else {
-            format!(
-                "no pixel moved by more than {:.2} 8-bit levels from what was left out (budget {}; --exact renders everything, --explain says what was left out)",
-                worst_bound * 255.0,
-                a.budget
-            )
-        }
-    );
     Ok(())
+}
+
+/// The orbit's cameras around the reference, turned toward the MHI's median depth.
+fn orbit_cameras(
+    a: &RenderArgs,
+    mhi: &mhi_render::Mhi,
+    reference: &Camera,
+    baseline: f64,
+) -> anyhow::Result<Vec<Camera>> {
+    let look_at = crate::views::median_depth(mhi);
+    let (cams, deg) = orbit(
+        reference,
+        a.orbit_radius * baseline,
+        a.orbit_frames,
+        look_at,
+    )?;
+    match look_at {
+        Some(z) => println!(
+            "orbit: {} cameras on a circle of radius {:.3}, turned toward the median depth {z:.3} (rotation up to {deg:.1} deg)",
+            cams.len(),
+            a.orbit_radius * baseline
+        ),
+        None => println!(
+            "orbit: nothing in front of the far plane; the cameras translate without turning"
+        ),
+    }
+    Ok(cams)
 }

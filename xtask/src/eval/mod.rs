@@ -9,6 +9,8 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use burn::tensor::Device;
 use image::Rgb32FImage;
+use mhi_data::output::StagedDir;
+use mhi_data::sanitize::for_markdown;
 use mhi_data::{Dataset, Fit, LoadedFrame, TripletIndex, TripletKind, load_frame, load_scene};
 use mhi_eval::Bootstrap;
 use mhi_eval::plot::{Curve, TimePoint};
@@ -134,26 +136,51 @@ struct ReportJson<'a> {
     measurements: &'a [Measurement],
 }
 
-/// `cargo xtask eval`.
+/// `cargo xtask eval`: the report is built beside `--out` and swapped into place whole (see
+/// [`mhi_data::output`]), as is the `--export` viewer.
 pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     if a.data.len() == 1 && a.data[0] == Path::new("data/synth") {
         crate::common::ensure_synthetic(&a.data[0])?;
     }
-    if a.out.join("report.json").exists() && !a.overwrite {
-        bail!(
-            "{} already holds a report; pass --overwrite to replace it or choose another --out",
-            a.out.display()
-        );
+    if let Some(dir) = &a.export {
+        let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+        if abs(dir).starts_with(abs(&a.out)) || abs(&a.out).starts_with(abs(dir)) {
+            bail!(
+                "--out {} and --export {} lie one inside the other: give the viewer a folder of its own",
+                a.out.display(),
+                dir.display()
+            );
+        }
     }
-    if let Some(dir) = &a.export
-        && dir.join("index.html").exists()
-        && !a.overwrite
+    let report = StagedDir::begin(&a.out, "eval report", a.overwrite)?;
+    let viewer = a
+        .export
+        .as_deref()
+        .map(|d| StagedDir::begin(d, "viewer", a.overwrite))
+        .transpose()?;
+    for n in std::iter::once(&report)
+        .chain(&viewer)
+        .flat_map(|s| s.notes())
     {
-        bail!(
-            "--export {}: the folder already holds an exported viewer; pass --overwrite to replace it or choose another folder",
-            dir.display()
+        println!("note: {n}");
+    }
+    let mut staged = a.clone();
+    staged.out = report.path().to_path_buf();
+    staged.export = viewer.as_ref().map(|v| v.path().to_path_buf());
+    evaluate(&staged)?;
+    if let Some(v) = viewer {
+        let dir = v.commit()?;
+        println!(
+            "viewer of the first triplet: {}",
+            dir.join("index.html").display()
         );
     }
+    let dir = report.commit()?;
+    println!("report: {}", dir.join("report.md").display());
+    Ok(())
+}
+
+fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
     if !(a.budget.is_finite() && (0.0..=255.0).contains(&a.budget)) {
         bail!(
             "--budget {} must be a number of 8-bit levels in [0, 255] (1 by default)",
@@ -191,7 +218,10 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         ds.select(&a.sequences, true).context("--sequences")?
     };
     for w in &ds.warnings {
-        eprintln!("warning: {}: {}", w.path.display(), w.message);
+        eprintln!(
+            "warning: {}",
+            mhi_data::sanitize::for_terminal(&w.to_string())
+        );
     }
     let index = match &a.index {
         Some(p) => {
@@ -199,7 +229,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             idx.validate(&ds, p)?;
             idx
         }
-        None => TripletIndex::sample(&ds, a.per_sequence, a.seed),
+        None => crate::common::sample_index(&ds, a.per_sequence, a.seed)?,
     };
     if index.triplets.is_empty() {
         match &a.index {
@@ -309,23 +339,6 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             None
         }
     };
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("cannot create {}", a.out.display()))?;
-    // A report replaced with --overwrite must not keep pictures of the one before.
-    for stale in ["samples", "layers"] {
-        let p = a.out.join(stale);
-        if p.is_dir() {
-            std::fs::remove_dir_all(&p)
-                .with_context(|| format!("cannot remove the old {}", p.display()))?;
-        }
-    }
-    for stale in ["orbit.gif", "training_curve.svg", "training_curve.png"] {
-        let p = a.out.join(stale);
-        if p.is_file() {
-            std::fs::remove_file(&p)
-                .with_context(|| format!("cannot remove the old {}", p.display()))?;
-        }
-    }
     let ctx = Ctx {
         a,
         models: &models,
@@ -598,7 +611,6 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let md = md + &prune_markdown(&prune_rows, a);
     mhi_data::write_atomic(&a.out.join("report.md"), md.as_bytes())?;
     print_summary(&rows, &comparisons);
-    println!("report: {}", a.out.join("report.md").display());
     Ok(())
 }
 
@@ -834,9 +846,9 @@ fn markdown(
     let _ = writeln!(s, "# MHI evaluation report\n");
     let _ = writeln!(
         s,
-        "Dataset `{}` (split `{}`, {} sequences), {} triplets (rotation bins {}: {} / {} / {} / {}), evaluated at {}. {}. Sweep: window radius {} px at a short side of 256 (scaled with each sequence's short side: {} px at {}), temperature {}, cost of an unseen plane {}. Intervals: 95 % percentile bootstrap over triplets ({} resamples, seed {}). Machine: {}, {} threads, {}.\n",
-        meta.dataset,
-        meta.split,
+        "Dataset {} (split {}, {} sequences), {} triplets (rotation bins {}: {} / {} / {} / {}), evaluated at {}. {}. Sweep: window radius {} px at a short side of 256 (scaled with each sequence's short side: {} px at {}), temperature {}, cost of an unseen plane {}. Intervals: 95 % percentile bootstrap over triplets ({} resamples, seed {}). Machine: {}, {} threads, {}.\n",
+        for_markdown(&meta.dataset),
+        for_markdown(&meta.split),
         meta.sequences.len(),
         meta.triplets,
         mhi_data::RotationBin::ALL.map(|b| b.label()).join(" / "),
@@ -868,8 +880,8 @@ fn markdown(
         let c = m.model.config();
         let _ = writeln!(
             s,
-            "- run `{}`: N = {}, D = {}, trained {} of {} steps at {}x{}, loss: {}{}",
-            m.run.display(),
+            "- run {}: N = {}, D = {}, trained {} of {} steps at {}x{}, loss: {}{}",
+            for_markdown(&m.run.display().to_string()),
             c.stage1.normals,
             c.planes,
             m.model.step(),

@@ -33,7 +33,7 @@ pub(super) fn write_samples(
     };
     let mut md = format!(
         "#### Sample {k}: {} frames {} + {} → {} ({}, {:.1}° max rotation)\n\n",
-        t.sequence,
+        mhi_data::sanitize::for_markdown(&t.sequence),
         t.reference,
         t.source,
         t.target,
@@ -167,10 +167,6 @@ pub(super) fn write_layers_and_orbit(
             ],
             &[("target photo".to_string(), &tf.camera)],
         )?;
-        println!(
-            "viewer of the first triplet: {}",
-            dir.join("index.html").display()
-        );
     }
     let mut rotation = None;
     if a.orbit_frames > 0 {

@@ -80,7 +80,7 @@ impl Backbone {
         let bytes = std::fs::read(&path).map_err(|e| {
             Error::Config(match e.kind() {
                 std::io::ErrorKind::NotFound => format!(
-                    "{}: the pretrained weights are not there (`cargo xtask weights` fetches them)",
+                    "{}: the pretrained weights are not there",
                     path.display()
                 ),
                 std::io::ErrorKind::PermissionDenied => format!(
@@ -92,7 +92,7 @@ impl Backbone {
         })?;
         let st = safetensors::SafeTensors::deserialize(&bytes).map_err(|e| {
             Error::Checkpoint(format!(
-                "{}: the cached weights are damaged or truncated ({e}); `cargo xtask weights --force` fetches them again",
+                "{}: the cached weights are damaged or truncated ({e}): fetch them again",
                 path.display()
             ))
         })?;

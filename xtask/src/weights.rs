@@ -93,11 +93,12 @@ fn sha256_of(path: &Path) -> anyhow::Result<String> {
 pub fn weights(a: &WeightsArgs) -> anyhow::Result<()> {
     let dir = cache_dir(a.cache.as_deref()).join("weights");
     let targets = ["alexnet", "vgg16"];
-    if !a.force
-        && targets
-            .iter()
-            .all(|n| dir.join(format!("{n}.safetensors")).is_file())
-    {
+    // A cached file counts only if it reads as safetensors: a truncated one is fetched again.
+    let readable = |n: &str| {
+        std::fs::read(dir.join(format!("{n}.safetensors")))
+            .is_ok_and(|b| safetensors::SafeTensors::deserialize(&b).is_ok())
+    };
+    if !a.force && targets.iter().all(|n| readable(n)) {
         println!(
             "weights already in {} (pass --force to fetch again)",
             dir.display()

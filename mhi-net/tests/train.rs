@@ -340,3 +340,42 @@ fn the_learning_rate_drop_changes_the_steps_after_it_only() {
     );
     assert_eq!(max_diff(&plain4, &run("c4", Some((2, 1.0)), 4)), 0.0);
 }
+
+/// A run folder tampered with: a `latest.json` that points outside the run is not followed, and
+/// a `config.json` with absurd sizes is refused before anything is allocated.
+#[test]
+fn tampered_run_files_are_refused() {
+    let d = data();
+    let device = Device::flex().autodiff();
+    let run = d.path().join("run");
+    let mut t = Trainer::new(tiny(4, 2), &run, d.path(), TrainLoss::Photometric, device).unwrap();
+    t.checkpoint().unwrap();
+    drop(t);
+    let load = || {
+        mhi_net::Model::load(&run, Device::flex())
+            .err()
+            .expect("a tampered run loads")
+            .to_string()
+    };
+    let latest = run.join("latest.json");
+    let good = std::fs::read_to_string(&latest).unwrap();
+    std::fs::write(&latest, r#"{"step": 0, "dir": "../elsewhere"}"#).unwrap();
+    let err = load();
+    assert!(err.contains("refusing to follow"), "{err}");
+    std::fs::write(&latest, good).unwrap();
+    let cfg = run.join("config.json");
+    let text = std::fs::read_to_string(&cfg).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let width = v["stage1"]["unet"]["width"].as_u64().unwrap();
+    std::fs::write(
+        &cfg,
+        text.replacen(
+            &format!("\"width\": {width},\n      \"levels\""),
+            "\"width\": 100000000,\n      \"levels\"",
+            1,
+        ),
+    )
+    .unwrap();
+    let err = load();
+    assert!(err.contains("stage1.unet.width = 100000000"), "{err}");
+}

@@ -12,6 +12,25 @@
 //! on one plane. [`channel_norm`] is layer normalisation over the channel axis without the two
 //! permutes burn's last-axis layer norm needs ([`norm`]); [`max_pool2d`] is max pooling without
 //! burn-flex's general 3D pooling and `i64` indices ([`pool`]).
+//!
+//! # The kernels, in one paragraph
+//!
+//! `fastconv/` (the CPU backend's own kernels as a burn backend extension `FastOps`, each with its
+//! autodiff backward: `kernel.rs` the 3D convolution and its two gradients — convolutions of few
+//! output channels with stride 1 in depth directly, on the padded input split into its polyphase
+//! components (one for stride 1, four for stride 2 in the image axes) and read in place at a
+//! shifted origin per kernel offset, no im2col: the forward as a register-blocked AVX2 + FMA
+//! kernel (`kernel::blocked`, a tile of positions × 8 or 16 output channels kept in registers
+//! across every offset and input channel) where the CPU has both and the output channels come in
+//! blocks of 8 — with AVX-512F and channels in blocks of 16 its tiles are 16 channels a vector
+//! (`tile512`, 24 accumulators; the same bits as the AVX2 tiles, tested) — else one `gemm` per
+//! offset (gemm is built with `x86-v4`: its AVX-512 microkernels where the CPU has them); the
+//! weight gradient one `gemm` per offset; the rest as im2col tiles × `gemm` — which `conv3d`,
+//! `conv2d` (one plane) and the `forward`/`forward2d` helpers of burn's conv modules run on `flex`
+//! — every convolution of stage 1, the blending network, VGG16 and LPIPS; `norm.rs` layer
+//! normalisation over the channel axis without permutes; `pool.rs` max pooling (VGG16's and
+//! AlexNet's), whose tracked forward keeps each window's maximum position for the backward to add
+//! the gradient to; on any other device each falls back to burn's own op).
 
 pub mod kernel;
 pub mod norm;

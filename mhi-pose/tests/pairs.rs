@@ -65,7 +65,10 @@ fn a_synthetic_pair_is_recovered() {
         .clamp(-1.0, 1.0)
         .acos()
         .to_degrees();
-    eprintln!("{}\nrotation error {dr:.4}°, direction error {dt:.4}°", pair.summary());
+    eprintln!(
+        "{}\nrotation error {dr:.4}°, direction error {dt:.4}°",
+        pair.summary()
+    );
     // SIFT on procedural textures: a few tenths of a degree (exact matches: the next test).
     assert!(dr < 2.0, "rotation error {dr}°");
     assert!(dt < 15.0, "translation direction error {dt}°");
@@ -74,7 +77,13 @@ fn a_synthetic_pair_is_recovered() {
 }
 
 /// Exact correspondences of random points seen by two cameras with a known pose.
-fn projected(r: DMat3, t: DVec3, k: DMat3, planar: bool, n: usize) -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
+fn projected(
+    r: DMat3,
+    t: DVec3,
+    k: DMat3,
+    planar: bool,
+    n: usize,
+) -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
     // A small deterministic generator (no rand dependency in this test).
     let mut state = 0x2545_f491_4f6c_dd1d_u64;
     let mut next = || {
@@ -116,14 +125,26 @@ fn exact_matches_give_the_pose_to_a_hundredth_of_a_degree() {
     let (a, b) = projected(r, t, k640(), false, 300);
     let m = mhi_pose::pose_from_matches(&a, &b, k640(), k640(), 0.5, 0).unwrap();
     let dr = mhi_geom::rotation_angle_deg(&(m.rotation * r.transpose()));
-    let dt = m.translation.normalize().dot(t.normalize()).clamp(-1.0, 1.0).acos().to_degrees();
+    let dt = m
+        .translation
+        .normalize()
+        .dot(t.normalize())
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees();
     assert!(dr < 0.01, "rotation error {dr}°");
     assert!(dt < 0.01, "direction error {dt}°");
-    assert!(m.points.iter().all(|p| p[2] > 0.0), "a point behind the reference camera");
+    assert!(
+        m.points.iter().all(|p| p[2] > 0.0),
+        "a point behind the reference camera"
+    );
     // Swapped, the same pair gives the inverse pose: a swap cannot pass for another pose.
     let s = mhi_pose::pose_from_matches(&b, &a, k640(), k640(), 0.5, 0).unwrap();
     let back = mhi_geom::rotation_angle_deg(&(s.rotation * r));
-    let tb = s.translation.normalize().dot((-(r.transpose() * t)).normalize());
+    let tb = s
+        .translation
+        .normalize()
+        .dot((-(r.transpose() * t)).normalize());
     assert!(back < 0.01, "swapped rotation {back}°");
     assert!(tb > 0.9999, "swapped direction cos {tb}");
     // The flipped decomposition (every point behind the cameras) is what the cheirality vote
@@ -158,7 +179,9 @@ fn bad_photos_and_intrinsics_are_refused() {
     assert!(matches!(e, Error::SamePhoto), "{e}");
     // A photo of nothing: no overlap, too few matches.
     let blank = d.path().join("blank.png");
-    image::RgbImage::from_pixel(512, 384, image::Rgb([90, 90, 90])).save(&blank).unwrap();
+    image::RgbImage::from_pixel(512, 384, image::Rgb([90, 90, 90]))
+        .save(&blank)
+        .unwrap();
     let e = estimate(&a, &Photo::open(&blank).unwrap(), &Options::default()).unwrap_err();
     assert!(matches!(e, Error::TooFewMatches { .. }), "{e}");
     // No EXIF: a stated assumption, not an error.

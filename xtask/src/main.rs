@@ -10,6 +10,7 @@ mod export;
 mod metrics;
 mod models;
 mod options;
+mod pose;
 mod progress;
 mod render;
 mod stability;
@@ -61,9 +62,10 @@ enum Task {
     /// and blend; writes report.md/json/csv, error_vs_time and training_curve figures, sample
     /// images, the MHI layers of one scene and an orbit GIF.
     Eval(options::EvalArgs),
-    /// Novel views of your own two photos: a RealEstate10K-style camera file gives their cameras
-    /// and the poses to render; a trained run (--run) or the training-free sweep builds the MHI;
-    /// writes the views and an orbit GIF around the reference photo.
+    /// Novel views of your own two photos: their poses are estimated from the photos (or a
+    /// RealEstate10K-style camera file gives them and more views to render); a trained run
+    /// (--run), the pretrained model or the training-free sweep builds the MHI; writes the views
+    /// and an orbit GIF around the reference photo.
     Render(render::RenderArgs),
     /// An MHI as a folder a browser opens (no network, no build step): the layers as PNG
     /// atlases, a manifest and a WebGL2 viewer (index.html) with mouse and keyboard camera
@@ -71,6 +73,10 @@ enum Task {
     Export(render::RenderArgs),
     /// PSNR, SSIM, LPIPS-alex and LPIPS-vgg (v0.1) of two images of the same size.
     Metrics(metrics::MetricsArgs),
+    /// Camera poses from two plain photos (EXIF or given intrinsics, SIFT matches, a robust
+    /// essential matrix, triangulation): writes a RealEstate10K camera file, row 1 the first
+    /// photo at the identity, row 2 the second, and prints what it found.
+    Pose(pose::PoseArgs),
 }
 
 /// The current UTC date and time, for reports (from `date`; the epoch seconds if it is missing).
@@ -156,6 +162,7 @@ fn main() {
         ),
         Task::Render(a) => render::render(&a),
         Task::Export(a) => render::export(&a),
+        Task::Pose(a) => pose::pose(&a),
     };
     if let Err(e) = result {
         // Paths and names in the message come from the file system: no escapes reach the

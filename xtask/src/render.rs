@@ -30,9 +30,12 @@ pub struct RenderArgs {
     /// Camera file, RealEstate10K format: URL line, then one row per camera (timestamp fx fy cx
     /// cy k1 k2 and the 3x4 world-to-camera pose, intrinsics normalised by the image size),
     /// timestamps increasing. The rows named by --ref-row and --src-row are the photos' cameras;
-    /// every other row is a view to render.
+    /// every other row is a view to render. Without it the two photos' poses are estimated
+    /// from the photos themselves (`cargo xtask pose`) and the views follow the orbit.
     #[arg(long)]
-    pub cameras: PathBuf,
+    pub cameras: Option<PathBuf>,
+    #[command(flatten)]
+    pub intrinsics: crate::pose::IntrinsicsArgs,
     /// Camera row (1-based, not counting the URL line) of the reference photo.
     #[arg(long, default_value_t = 1)]
     pub ref_row: usize,
@@ -102,12 +105,13 @@ const MAX_VIEWER_VIEWS: usize = 10_000;
 /// Check the options against the camera file before anything is loaded or written.
 fn check_args(a: &RenderArgs, file: &CameraFile, views_too: bool) -> anyhow::Result<()> {
     let rows = file.rows.len();
+    let cameras = a.cameras.as_deref().map_or_else(
+        || "the estimated poses".to_string(),
+        |p| p.display().to_string(),
+    );
     for (what, r) in [("--ref-row", a.ref_row), ("--src-row", a.src_row)] {
         if r == 0 || r > rows {
-            bail!(
-                "{what} {r}: {} has camera rows 1 to {rows}",
-                a.cameras.display()
-            );
+            bail!("{what} {r}: {cameras} has camera rows 1 to {rows}");
         }
     }
     if !(a.orbit_radius.is_finite() && a.orbit_radius > 0.0 && a.orbit_radius <= 10.0) {
@@ -141,8 +145,7 @@ fn check_args(a: &RenderArgs, file: &CameraFile, views_too: bool) -> anyhow::Res
         let listed = rows - 2;
         if listed > MAX_VIEWER_VIEWS {
             bail!(
-                "{} lists {listed} views: an exported viewer lists at most {MAX_VIEWER_VIEWS} (each is a camera in its manifest); render the views without --export, or export with a shorter camera file",
-                a.cameras.display()
+                "{cameras} lists {listed} views: an exported viewer lists at most {MAX_VIEWER_VIEWS} (each is a camera in its manifest); render the views without --export, or export with a shorter camera file"
             );
         }
     }
@@ -218,7 +221,17 @@ fn working_size(a: &RenderArgs, learned: Option<&Model>) -> anyhow::Result<(u32,
 }
 
 fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result<()> {
-    let file = CameraFile::read(&a.cameras)?;
+    let file = match &a.cameras {
+        Some(p) => CameraFile::read(p)?,
+        None => {
+            if (a.ref_row, a.src_row) != (1, 2) {
+                bail!(
+                    "--ref-row and --src-row name rows of a camera file: give --cameras, or leave them out to estimate the poses"
+                );
+            }
+            crate::pose::estimate(&a.reference, &a.src, &a.intrinsics)?.1
+        }
+    };
     if let Some(w) = &file.rotation_warning {
         eprintln!("warning: {}", for_terminal(w));
     }
@@ -281,7 +294,7 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
             .map(|(k, r)| {
                 let cam = r
                     .camera(size.0, size.1)
-                    .with_context(|| format!("{}: camera row {}", a.cameras.display(), k + 1))?;
+                    .with_context(|| format!("camera row {}", k + 1))?;
                 Ok((k + 1, cam))
             })
     };

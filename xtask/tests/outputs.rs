@@ -567,3 +567,87 @@ fn four_decimal_rotations_warn_and_reflections_are_named() {
         "{err}"
     );
 }
+
+/// Two plain photos in, views out: `pose` writes a camera file, `render` without `--cameras`
+/// estimates the poses itself; bad pairs are refused with what to do.
+#[test]
+fn two_plain_photos_give_poses_and_views() {
+    let d = tempfile::tempdir().unwrap();
+    let root = d.path().join("data");
+    let config = SynthConfig {
+        scenes: 1,
+        frames: 6,
+        width: 512,
+        height: 384,
+        seed: 11,
+        test_fraction: 0.0,
+        val_fraction: 0.0,
+        ..SynthConfig::default()
+    };
+    generate(&config, &root, &|| {}).unwrap();
+    let file = mhi_data::CameraFile::read(&root.join("train/scene_00000.txt")).unwrap();
+    let frame = |k: usize| {
+        root.join(format!("train/scene_00000/{}.png", file.rows[k].timestamp))
+            .display()
+            .to_string()
+    };
+    let (a, b) = (frame(0), frame(3));
+    let cams = d.path().join("cams.txt");
+    let said = ok(&["pose", &a, &b, "--out", cams.to_str().unwrap()]);
+    assert!(
+        said.contains("inliers") && said.contains("assumed"),
+        "{said}"
+    );
+    let written = mhi_data::CameraFile::read(&cams).unwrap();
+    assert_eq!(written.rows.len(), 2);
+    let err = fails(&["pose", &a, &b, "--out", cams.to_str().unwrap()]);
+    assert!(err.contains("--overwrite"), "{err}");
+    let views = d.path().join("views");
+    let said = ok(&[
+        "render",
+        "--ref",
+        &a,
+        "--src",
+        &b,
+        "--sweep",
+        "--planes",
+        "8",
+        "--orbit-frames",
+        "3",
+        "--out",
+        views.to_str().unwrap(),
+    ]);
+    assert!(said.contains("poses of"), "{said}");
+    assert!(views.join("orbit.gif").is_file() && views.join("plan.json").is_file());
+    let err = fails(&[
+        "pose",
+        &a,
+        &a,
+        "--out",
+        d.path().join("x.txt").to_str().unwrap(),
+    ]);
+    assert!(err.contains("same file"), "{err}");
+    let blank = d.path().join("blank.png");
+    image::RgbImage::from_pixel(512, 384, image::Rgb([90, 90, 90]))
+        .save(&blank)
+        .unwrap();
+    let err = fails(&[
+        "pose",
+        &a,
+        blank.to_str().unwrap(),
+        "--out",
+        d.path().join("y.txt").to_str().unwrap(),
+    ]);
+    assert!(err.contains("matches"), "{err}");
+    let err = fails(&[
+        "pose",
+        &a,
+        &b,
+        "--intrinsics",
+        "100,133,0.5,0.5",
+        "--out",
+        d.path().join("z.txt").to_str().unwrap(),
+    ]);
+    assert!(err.contains("field of view"), "{err}");
+    assert!(!d.path().join("x.txt").exists() && !d.path().join("y.txt").exists());
+}

@@ -571,8 +571,10 @@ pub fn pose_from_matches(
         random_seed: Some(seed),
         ..RansacParams::default()
     };
-    // A homography that explains nearly every match is a degenerate pair: a rotation about the
-    // camera centre (the homography is then K₂ R K₁⁻¹) or one plane.
+    // A homography that explains nearly every match: either a rotation about the camera
+    // centre or a distant scene (the homography is then nearly K₂ R K₁⁻¹; whether the small
+    // parallax left suffices is decided below) or one plane seen in perspective: refused.
+    let mut mostly_rotation = false;
     if let Ok(h) = kornia_3d::pose::ransac_homography(
         &v1,
         &v2,
@@ -584,18 +586,16 @@ pub fn pose_from_matches(
     {
         let m = k2.inverse() * DMat3::from_cols_array(&h.model.to_cols_array()) * k1;
         let det = m.determinant();
-        let rotation_only = det.abs() > 1e-12 && {
+        mostly_rotation = det.abs() > 1e-12 && {
             let n = m * (1.0 / det.cbrt());
             mhi_geom::rotation_error(&n) < 0.02
         };
-        return Err(if rotation_only {
-            Error::NoParallax { median_deg: 0.0 }
-        } else {
-            Error::Planar {
+        if !mostly_rotation {
+            return Err(Error::Planar {
                 homography: h.inlier_count,
                 epipolar: 0,
-            }
-        });
+            });
+        }
     }
     let estimator = TwoViewEstimator::builder()
         .epipolar_solver(EssentialNister5ptSolver { ransac })
@@ -607,6 +607,9 @@ pub fn pose_from_matches(
         })
         .triangulation(TriangulationConfig {
             min_parallax_deg: 0.05,
+            // Small baselines (video frames a fifth of a second apart) leave the runner-up
+            // decomposition close; the parallax check below refuses the truly ambiguous.
+            cheirality_ambiguity_max: 0.95,
             ..TriangulationConfig::default()
         })
         .build();
@@ -614,6 +617,7 @@ pub fn pose_from_matches(
         .estimate(&v1, &v2, &to_k(k1), &to_k(k2))
         .map_err(|e| match e {
             TwoViewError::AmbiguousCheirality { .. } => Error::NoParallax { median_deg: 0.0 },
+            _ if mostly_rotation => Error::NoParallax { median_deg: 0.0 },
             other => Error::NoPose {
                 matches,
                 why: other.to_string(),
@@ -643,7 +647,9 @@ pub fn pose_from_matches(
             median_deg: median_parallax,
         });
     }
-    if let TwoViewModel::Homography(_) = result.model {
+    // A homography chosen over the essential matrix is kept only for a scene the pre-check
+    // found to be a near-rotation with parallax enough (a distant scene); a plane was refused.
+    if matches!(result.model, TwoViewModel::Homography(_)) && !mostly_rotation {
         return Err(Error::Planar {
             homography: inliers,
             epipolar: 0,

@@ -26,10 +26,10 @@ use clap::Parser;
 #[derive(Parser, Debug)]
 #[command(name = "cargo xtask", version, about, long_about = None)]
 enum Task {
-    /// The whole method from a fresh clone: synthesise scenes, fetch the pretrained weights,
-    /// train the default MHI model and the MPI baseline, evaluate every method and write the
-    /// report (about 12 minutes from a fresh clone on 2 cores, 5 once built). Prints the
-    /// report's path.
+    /// The main job on two bundled photos: their poses, the pretrained MHI, views, an orbit GIF
+    /// and the browser viewer (a minute once built). `--full`: synthesise scenes, fetch the
+    /// pretrained weights, train the default MHI model and the MPI baseline, evaluate every
+    /// method and write the report (about 12 minutes from a fresh clone on 2 cores).
     Demo(demo::DemoArgs),
     /// Generate synthetic posed scenes (rooms and courtyards of textured planes) in
     /// RealEstate10K layout, with exact ground-truth planes in each scene's scene.json.
@@ -158,6 +158,8 @@ fn main() {
                 weights: &weights::weights,
                 train: &train::train,
                 eval: &eval::eval,
+                render: &render::render,
+                export: &render::export,
             },
         ),
         Task::Render(a) => render::render(&a),

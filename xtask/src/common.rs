@@ -279,3 +279,42 @@ pub fn check_synth_count(scenes: usize, frames: usize) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+/// The CPU's model name (`/proc/cpuinfo`), or the architecture where there is none.
+pub fn cpu_model() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|t| {
+            t.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split_once(':'))
+                .map(|(_, v)| v.trim().to_string())
+        })
+        .unwrap_or_else(|| std::env::consts::ARCH.to_string())
+}
+
+/// The paths the project's own kernels take on this CPU (each is chosen at run time by the
+/// CPU's features; docs/SPEED.md lists them).
+pub fn kernel_paths() -> String {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let avx2_fma = std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("fma");
+        let avx512 = std::arch::is_x86_feature_detected!("avx512f");
+        format!(
+            "renderer band loop: {}; convolution tiles: {}",
+            if avx2_fma { "AVX2 + FMA" } else { "baseline" },
+            if avx512 && avx2_fma {
+                "AVX-512F (16 channels), AVX2 + FMA (8)"
+            } else if avx2_fma {
+                "AVX2 + FMA (8 channels)"
+            } else {
+                "gemm only"
+            }
+        )
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        "renderer band loop: baseline; convolution tiles: gemm only".to_string()
+    }
+}

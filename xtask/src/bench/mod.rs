@@ -408,6 +408,12 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
     if a.rounds == 0 {
         bail!("--rounds 0: at least one round of this renderer and the peer is needed for a ratio");
     }
+    println!(
+        "CPU: {} ({} threads); {}",
+        crate::common::cpu_model(),
+        rayon::current_num_threads(),
+        crate::common::kernel_paths()
+    );
     if let Some(other) = &a.compare_backend {
         let v = step::backend_agreement(&a.data, *other)?;
         if let Some(p) = &a.json {

@@ -981,15 +981,7 @@ fn print_summary(rows: &[Row], comparisons: &[Comparison]) {
 }
 
 fn machine() -> String {
-    std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|t| {
-            t.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split_once(':'))
-                .map(|(_, v)| v.trim().to_string())
-        })
-        .unwrap_or_else(|| std::env::consts::ARCH.to_string())
+    crate::common::cpu_model()
 }
 
 #[cfg(test)]

@@ -398,6 +398,23 @@ pub struct EvalArgs {
     /// a − b with paired intervals. Repeat for several pairs.
     #[arg(long = "compare", value_parser = parse_compare)]
     pub compare: Vec<(String, String)>,
+    /// The reference and source cameras every method renders from: the dataset's (`given`), or
+    /// `estimated` from the two frames' pixels by `mhi-pose` with the dataset's intrinsics (the
+    /// estimated translation scaled to the true baseline's length, the target camera placed
+    /// with its true pose relative to the reference; a pair whose pose cannot be estimated keeps
+    /// the true one and is counted). Run twice and pair the reports
+    /// (`xtask/scripts/paired_runs.py`) for what estimated poses cost.
+    #[arg(long, value_enum, default_value_t = PoseArg::Given)]
+    pub poses: PoseArg,
+}
+
+/// Where `eval` takes the input cameras from.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PoseArg {
+    /// The dataset's cameras.
+    Given,
+    /// Estimated from the two frames (`mhi-pose`).
+    Estimated,
 }
 
 impl Method {

@@ -105,6 +105,8 @@ struct ExactCheck {
 
 #[derive(Serialize)]
 struct Meta {
+    /// Where the input cameras came from (`given`, or estimated with how many fell back).
+    poses: String,
     dataset: String,
     split: String,
     sequences: Vec<String>,
@@ -352,6 +354,7 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
     let mut orbit_rotation = None;
     let mut sample_md = String::new();
     let mut sizes_used = Vec::new();
+    let mut pose_failures = 0usize;
     for (ti, t) in index.triplets.iter().enumerate() {
         let seq = ds
             .sequences
@@ -365,7 +368,19 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
         let load = |i: usize| -> anyhow::Result<LoadedFrame> {
             Ok(load_frame(&seq.frames[i], Some(size), Fit::Stretch)?)
         };
-        let (rf, sf, tf) = (load(t.reference)?, load(t.source)?, load(t.target)?);
+        let (rf, mut sf, tf) = (load(t.reference)?, load(t.source)?, load(t.target)?);
+        if a.poses == crate::options::PoseArg::Estimated {
+            match estimated_source(&seq.frames[t.reference], &seq.frames[t.source], &rf, &sf) {
+                Ok(cam) => sf.camera = cam,
+                Err(e) => {
+                    pose_failures += 1;
+                    eprintln!(
+                        "warning: triplet {ti}: no estimated pose ({}); it keeps the true one",
+                        mhi_data::sanitize::for_terminal(&format!("{e:#}"))
+                    );
+                }
+            }
+        }
         if ti == 0 {
             // Warm-up: the first view of every method pays for allocations and lazy
             // initialisation that a user rendering many views pays once.
@@ -509,6 +524,13 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
             "target pixels whose ray meets the reference camera's fronto-parallel plane at depth {} inside the reference image; LPIPS covered = LPIPS of the render with uncovered pixels replaced by the ground truth's",
             a.range.far
         ),
+        poses: match a.poses {
+            crate::options::PoseArg::Given => "given (the dataset's cameras)".into(),
+            crate::options::PoseArg::Estimated => format!(
+                "estimated from the frames by mhi-pose with the dataset's intrinsics, the translation scaled to the true baseline; {pose_failures} of {} triplets kept the true pose (no estimate)",
+                index.triplets.len()
+            ),
+        },
         timing: "ms per view from the two decoded input images to the final image (cost volume or sweep, networks, building the MHI, render, blend), after one warm-up view; file I/O and metrics excluded".into(),
         sweep: sweep_config,
         bootstrap: boot,
@@ -844,6 +866,7 @@ fn markdown(
 ) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# MHI evaluation report\n");
+    let _ = writeln!(s, "Input cameras: {}.\n", meta.poses);
     let _ = writeln!(
         s,
         "Dataset {} (split {}, {} sequences), {} triplets (rotation bins {}: {} / {} / {} / {}), evaluated at {}. {}. Sweep: window radius {} px at a short side of 256 (scaled with each sequence's short side: {} px at {}), temperature {}, cost of an unseen plane {}. Intervals: 95 % percentile bootstrap over triplets ({} resamples, seed {}). Machine: {}, {} threads, {}.\n",
@@ -978,6 +1001,36 @@ fn print_summary(rows: &[Row], comparisons: &[Comparison]) {
             c.verdict()
         );
     }
+}
+
+/// The source camera with the pose `mhi-pose` estimates from the two frames' pixels (their
+/// known intrinsics), its translation scaled to the true baseline's length; the reference
+/// keeps its true pose, so the target's true pose relative to it stands.
+fn estimated_source(
+    reference: &mhi_data::Frame,
+    source: &mhi_data::Frame,
+    rf: &LoadedFrame,
+    sf: &LoadedFrame,
+) -> anyhow::Result<mhi_geom::Camera> {
+    let (pa, pb) = (
+        mhi_pose::Photo::open(&reference.path)?,
+        mhi_pose::Photo::open(&source.path)?,
+    );
+    let options = mhi_pose::Options {
+        ref_intrinsics: Some(reference.row.intrinsics),
+        src_intrinsics: Some(source.row.intrinsics),
+        ..mhi_pose::Options::default()
+    };
+    let pair = mhi_pose::estimate(&pa, &pb, &options)?;
+    let truth = sf
+        .camera
+        .cam_from_world
+        .compose(&rf.camera.cam_from_world.inverse());
+    let t = pair.translation().normalize() * truth.translation().length();
+    let src_from_ref = mhi_geom::RigidTransform::new(pair.rotation(), t)?;
+    let mut cam = sf.camera;
+    cam.cam_from_world = src_from_ref.compose(&rf.camera.cam_from_world);
+    Ok(cam)
 }
 
 fn machine() -> String {

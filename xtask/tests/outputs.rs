@@ -434,6 +434,18 @@ fn absurd_counts_are_refused_with_their_cost() {
         "{err}"
     );
     let data = s.root.to_str().unwrap();
+    let report = s.tmp().join("report");
+    let err = fails(&[
+        "eval",
+        "--data",
+        data,
+        "--orbit-frames",
+        "100000",
+        "--out",
+        report.to_str().unwrap(),
+    ]);
+    assert!(err.contains("--orbit-frames 100000"), "{err}");
+    assert!(!report.exists());
     let err = fails(&["triplets", "--data", data, "--per-sequence", "100000000"]);
     assert!(err.contains("--per-sequence 100000000"), "{err}");
     let synth = s.tmp().join("synth");

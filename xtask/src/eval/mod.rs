@@ -154,6 +154,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             );
         }
     }
+    crate::common::check_orbit_frames(a.orbit_frames)?;
     let report = StagedDir::begin(&a.out, "eval report", a.overwrite)?;
     let viewer = a
         .export

@@ -114,12 +114,12 @@ impl Dataset {
     /// error (a corrupt dataset should be fixed, not silently shrunk).
     pub fn open(root: &Path, split: &str, min_frames: usize) -> Result<Self> {
         let dir = root.join(split);
-        if root.join(crate::synth::INCOMPLETE_MARKER).exists() {
+        if root.join(crate::INCOMPLETE_MARKER).exists() {
             return Err(Error::Dataset {
                 path: root.to_path_buf(),
                 fault: format!(
                     "incomplete dataset: its generation was interrupted ({} is still there); generate it again",
-                    crate::synth::INCOMPLETE_MARKER
+                    crate::INCOMPLETE_MARKER
                 ),
             });
         }

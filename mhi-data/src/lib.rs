@@ -47,8 +47,8 @@ pub use error::{Error, Result};
 pub use mix::{DataMix, DataSource};
 pub use re10k::{COLUMNS, CameraFile, CameraRow};
 pub use synth::{
-    Hit, INCOMPLETE_MARKER, SYNTH_KIND, Scene, Surface, SynthConfig, SynthSummary, Texture,
-    generate, load_scene, make_scene,
+    Hit, SYNTH_KIND, Scene, Surface, SynthConfig, SynthSummary, Texture, generate, load_scene,
+    make_scene,
 };
 pub use triplets::{
     CLIP_LEN, NEIGHBOUR_SOURCES, NEIGHBOUR_TARGETS, PAPER_EXTRAPOLATION_SHARE, RotationBin,
@@ -56,6 +56,11 @@ pub use triplets::{
     max_rotation_deg, sample_clip, sample_clip_for, sample_neighbour_triplet,
     sample_training_triplet, sample_triplet,
 };
+
+/// File in a dataset root while [`generate`] has not finished writing it (a set `Dataset::open`
+/// refuses). Here, at the crate root, so that reading datasets and making them do not import
+/// each other.
+pub const INCOMPLETE_MARKER: &str = "SYNTH_INCOMPLETE";
 
 /// Write `bytes` to `path` atomically: to a temporary file beside it, then renamed into place,
 /// so an interrupted write never leaves a truncated file where a good one was.

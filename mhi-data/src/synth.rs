@@ -913,7 +913,7 @@ pub fn generate(
     config.validate()?;
     // Marks the set as incomplete until the last frame is written: an interrupted run leaves it,
     // and `Dataset::open` then refuses the set instead of quietly training on a fraction of it.
-    let marker = out.join(INCOMPLETE_MARKER);
+    let marker = out.join(crate::INCOMPLETE_MARKER);
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     crate::write_atomic(
         &marker,
@@ -980,9 +980,6 @@ pub fn generate(
 
 /// The kind of output (see [`crate::output`]) a folder [`generate`] wrote is.
 pub const SYNTH_KIND: &str = "synthetic dataset";
-
-/// File in a dataset root while [`generate`] has not finished writing it.
-pub const INCOMPLETE_MARKER: &str = "SYNTH_INCOMPLETE";
 
 /// Read a scene's `scene.json`.
 pub fn load_scene(path: &Path) -> Result<Scene> {

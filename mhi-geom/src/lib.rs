@@ -47,6 +47,7 @@ mod intrinsics;
 mod plane;
 mod pose;
 mod rotation;
+pub mod simd;
 
 pub use angle::{
     BlendHeuristic, angle_cost, angle_cost_in_target, exp_small, exp_taylor, soft_weight,

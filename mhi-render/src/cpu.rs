@@ -303,8 +303,8 @@ fn soft_row(nt: &[DVec3], k: &mhi_geom::Intrinsics, y: usize, w: usize, row: &mu
         soft_row_generic(nt, k, y, w, row);
     }
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: `avx2` only needs AVX2, which the CPU was just found to have.
+    if mhi_geom::simd::level() >= mhi_geom::simd::Level::Avx2 {
+        // SAFETY: `avx2` only needs AVX2, which the CPU was found to have.
         #[allow(unsafe_code)]
         return unsafe { avx2(nt, k, y, w, row) };
     }
@@ -1021,11 +1021,8 @@ impl RowContext<'_> {
     /// shares its registers with the other's code.
     fn band(&self, y0: usize, out: &mut [f32], mni: &mut [&mut [f32]]) -> usize {
         #[cfg(target_arch = "x86_64")]
-        if self.rows == Rows::Fastest
-            && std::arch::is_x86_feature_detected!("avx2")
-            && std::arch::is_x86_feature_detected!("fma")
-        {
-            // SAFETY: `band_avx2` only needs AVX2 and FMA, which the CPU was just found to have.
+        if self.rows == Rows::Fastest && mhi_geom::simd::level() >= mhi_geom::simd::Level::Avx2 {
+            // SAFETY: `band_avx2` only needs AVX2 and FMA, which the CPU was found to have.
             #[allow(unsafe_code)]
             return unsafe {
                 if self.eps > 0.0 {
@@ -1791,8 +1788,7 @@ mod tests {
             // The baseline rows round every product; the AVX2 rows (where the CPU has them)
             // fuse each multiply-add, and so does the composite they are held to here.
             #[cfg(target_arch = "x86_64")]
-            let fused = std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma");
+            let fused = mhi_geom::simd::level() >= mhi_geom::simd::Level::Avx2;
             #[cfg(not(target_arch = "x86_64"))]
             let fused = false;
             for (rows, fused) in [(Rows::Baseline, false), (Rows::Fastest, fused)] {
@@ -1947,8 +1943,7 @@ mod tests {
         assert!(lists().any(|l| l.windows(2).any(|w| w[0] == w[1] + 1)));
         assert!(lists().any(|l| l.len() < d));
         #[cfg(target_arch = "x86_64")]
-        let fused = std::arch::is_x86_feature_detected!("avx2")
-            && std::arch::is_x86_feature_detected!("fma");
+        let fused = mhi_geom::simd::level() >= mhi_geom::simd::Level::Avx2;
         #[cfg(not(target_arch = "x86_64"))]
         let fused = false;
         for (rows, fused) in [(Rows::Baseline, false), (Rows::Fastest, fused)] {

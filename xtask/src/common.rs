@@ -294,27 +294,23 @@ pub fn cpu_model() -> String {
 }
 
 /// The paths the project's own kernels take on this CPU (each is chosen at run time by the
-/// CPU's features; docs/SPEED.md lists them).
+/// CPU's features, capped by `MHI_SIMD`; docs/SPEED.md lists them).
 pub fn kernel_paths() -> String {
-    #[cfg(target_arch = "x86_64")]
-    {
-        let avx2_fma = std::arch::is_x86_feature_detected!("avx2")
-            && std::arch::is_x86_feature_detected!("fma");
-        let avx512 = std::arch::is_x86_feature_detected!("avx512f");
-        format!(
-            "renderer band loop: {}; convolution tiles: {}",
-            if avx2_fma { "AVX2 + FMA" } else { "baseline" },
-            if avx512 && avx2_fma {
-                "AVX-512F (16 channels), AVX2 + FMA (8)"
-            } else if avx2_fma {
-                "AVX2 + FMA (8 channels)"
-            } else {
-                "gemm only"
-            }
-        )
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        "renderer band loop: baseline; convolution tiles: gemm only".to_string()
-    }
+    use mhi_geom::simd::{Level, detected, level};
+    let l = level();
+    format!(
+        "SIMD level {} (CPU: {}; MHI_SIMD caps it): renderer band loop {}, convolution tiles {}",
+        l.name(),
+        detected().name(),
+        if l >= Level::Avx2 {
+            "AVX2 + FMA"
+        } else {
+            "baseline"
+        },
+        match l {
+            Level::Avx512 => "AVX-512F (16 channels), AVX2 + FMA (8)",
+            Level::Avx2 => "AVX2 + FMA (8 channels)",
+            Level::Baseline => "gemm only",
+        }
+    )
 }

@@ -835,9 +835,7 @@ pub mod blocked {
     /// Whether [`forward`] runs: the CPU has AVX2 and FMA, and the output channels come in
     /// whole blocks of 8.
     pub fn applies(s: &ConvShape) -> bool {
-        s.cout.is_multiple_of(8)
-            && std::arch::is_x86_feature_detected!("avx2")
-            && std::arch::is_x86_feature_detected!("fma")
+        s.cout.is_multiple_of(8) && mhi_geom::simd::level() >= mhi_geom::simd::Level::Avx2
     }
 
     /// Which vector width a blocked forward runs at.
@@ -853,7 +851,9 @@ pub mod blocked {
     /// Whether the AVX-512 tiles run for `s` ([`Width::Widest`]): the CPU has AVX-512F and the
     /// output channels come in whole blocks of 16.
     pub fn avx512_applies(s: &ConvShape) -> bool {
-        applies(s) && s.cout.is_multiple_of(16) && std::arch::is_x86_feature_detected!("avx512f")
+        applies(s)
+            && s.cout.is_multiple_of(16)
+            && mhi_geom::simd::level() >= mhi_geom::simd::Level::Avx512
     }
 
     /// The convolution of the shapes [`super::forward_direct`] takes, `cout` a multiple of 8,

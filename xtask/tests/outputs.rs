@@ -43,19 +43,25 @@ struct Scene {
     b: String,
 }
 
+/// A synthetic set of `scenes` scenes of `frames` frames, `test_fraction` of them in `test`.
+fn synth(root: &Path, scenes: usize, frames: usize, size: (u32, u32), seed: u64, test: f64) {
+    let config = SynthConfig {
+        scenes,
+        frames,
+        width: size.0,
+        height: size.1,
+        seed,
+        test_fraction: test,
+        val_fraction: 0.0,
+        ..SynthConfig::default()
+    };
+    generate(&config, root, &|| {}).unwrap();
+}
+
 fn scene() -> Scene {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path().join("data");
-    let config = SynthConfig {
-        scenes: 2,
-        frames: 4,
-        width: 32,
-        height: 24,
-        seed: 3,
-        test_fraction: 0.5,
-        ..SynthConfig::default()
-    };
-    generate(&config, &root, &|| {}).unwrap();
+    synth(&root, 2, 4, (32, 24), 3, 0.5);
     let seq = root.join("test/scene_00001");
     let mut frames: Vec<PathBuf> = std::fs::read_dir(&seq)
         .unwrap()
@@ -586,17 +592,7 @@ fn four_decimal_rotations_warn_and_reflections_are_named() {
 fn two_plain_photos_give_poses_and_views() {
     let d = tempfile::tempdir().unwrap();
     let root = d.path().join("data");
-    let config = SynthConfig {
-        scenes: 1,
-        frames: 6,
-        width: 512,
-        height: 384,
-        seed: 11,
-        test_fraction: 0.0,
-        val_fraction: 0.0,
-        ..SynthConfig::default()
-    };
-    generate(&config, &root, &|| {}).unwrap();
+    synth(&root, 1, 6, (512, 384), 11, 0.0);
     let file = mhi_data::CameraFile::read(&root.join("train/scene_00000.txt")).unwrap();
     let frame = |k: usize| {
         root.join(format!("train/scene_00000/{}.png", file.rows[k].timestamp))

@@ -35,6 +35,23 @@ pub fn chromium_or_skip() -> Option<PathBuf> {
     found
 }
 
+/// Headless Chromium with WebGL2 on the CPU and no network traffic of its own.
+fn headless(browser: &Path) -> Command {
+    let mut c = Command::new(browser);
+    c.args([
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--use-angle=swiftshader",
+        "--enable-unsafe-swiftshader",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--no-first-run",
+    ]);
+    c
+}
+
 /// A screenshot of `page#hash`, cropped to `w × h` (the window is larger: headless Chromium's
 /// viewport has a minimum size).
 pub fn screenshot(
@@ -46,17 +63,8 @@ pub fn screenshot(
     dir: &Path,
 ) -> image::RgbImage {
     let shot = dir.join(format!("shot-{}.png", hash.replace(['=', '&'], "_")));
-    let out = Command::new(browser)
+    let out = headless(browser)
         .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--use-angle=swiftshader",
-            "--enable-unsafe-swiftshader",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            "--no-first-run",
             "--hide-scrollbars",
             "--force-device-scale-factor=1",
             "--window-size=480,360",
@@ -79,20 +87,8 @@ pub fn screenshot(
 /// viewer test, not by the unit tests of `src/export.rs` that include this file too.
 #[allow(dead_code)]
 pub fn dump_dom(browser: &Path, page: &Path, hash: &str, dir: &Path) -> String {
-    let out = Command::new(browser)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--use-angle=swiftshader",
-            "--enable-unsafe-swiftshader",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            "--no-first-run",
-            "--virtual-time-budget=3000",
-            "--dump-dom",
-        ])
+    let out = headless(browser)
+        .args(["--virtual-time-budget=3000", "--dump-dom"])
         .arg(format!(
             "--user-data-dir={}",
             dir.join("profile-dom").display()

@@ -472,10 +472,14 @@ pub fn estimate(reference: &Photo, source: &Photo, options: &Options) -> Result<
         let pairs = ratio_matches(&fa.descriptors, &fb.descriptors, options.ratio);
         Ok::<_, Error>((fa, fb, pairs))
     };
-    let (mut fa, mut fb, mut pairs) = features(options.double_first_octave)?;
+    // Photos smaller than the working side rarely give matches enough at their own
+    // resolution: they start from twice it, as OpenCV does, rather than paying for both.
+    let small = reference.image.width().max(reference.image.height()) < options.working_side
+        && source.image.width().max(source.image.height()) < options.working_side;
+    let (mut fa, mut fb, mut pairs) = features(options.double_first_octave || small)?;
     // Few matches at the working resolution: SIFT again from twice the resolution (OpenCV's
     // default), about twice the keypoints for 3.6 times the time.
-    if pairs.len() < ENOUGH_MATCHES && !options.double_first_octave {
+    if pairs.len() < ENOUGH_MATCHES && !options.double_first_octave && !small {
         (fa, fb, pairs) = features(true)?;
     }
     let matches = pairs.len();

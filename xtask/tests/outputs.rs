@@ -120,6 +120,32 @@ impl Scene {
     }
 }
 
+/// `eval` of the nearest view only, at 32 × 32, one triplet a sequence (`extra`, if not empty,
+/// appended).
+fn eval_args<'a>(data: &'a str, samples: &'a str, out: &'a str, extra: &'a str) -> Vec<&'a str> {
+    let mut v = vec![
+        "eval",
+        "--data",
+        data,
+        "--size",
+        "32x32",
+        "--per-sequence",
+        "1",
+        "--methods",
+        "nearest",
+        "--orbit-frames",
+        "0",
+        "--samples",
+        samples,
+        "--out",
+        out,
+    ];
+    if !extra.is_empty() {
+        v.push(extra);
+    }
+    v
+}
+
 fn names(dir: &Path) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir)
         .unwrap()
@@ -144,24 +170,7 @@ fn a_folder_of_the_users_is_never_written_into() {
     }
     let data = s.root.to_str().unwrap();
     let out = theirs.to_str().unwrap();
-    let err = fails(&[
-        "eval",
-        "--data",
-        data,
-        "--size",
-        "32x32",
-        "--per-sequence",
-        "1",
-        "--methods",
-        "nearest",
-        "--orbit-frames",
-        "0",
-        "--samples",
-        "0",
-        "--out",
-        out,
-        "--overwrite",
-    ]);
+    let err = fails(&eval_args(data, "0", out, "--overwrite"));
     assert!(err.contains("holds files no mhi command made"), "{err}");
     let err = fails(&[
         "train",
@@ -520,23 +529,7 @@ fn hostile_sequence_names_are_contained() {
         "{out}{err}"
     );
     let report = s.tmp().join("report");
-    ok(&[
-        "eval",
-        "--data",
-        data,
-        "--size",
-        "32x32",
-        "--per-sequence",
-        "1",
-        "--methods",
-        "nearest",
-        "--orbit-frames",
-        "0",
-        "--samples",
-        "3",
-        "--out",
-        report.to_str().unwrap(),
-    ]);
+    ok(&eval_args(data, "3", report.to_str().unwrap(), ""));
     let md = std::fs::read_to_string(report.join("report.md")).unwrap();
     assert!(!md.contains("<img src=q") && !md.contains('\u{1b}'), "{md}");
 }

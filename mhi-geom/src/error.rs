@@ -99,6 +99,13 @@ pub enum Error {
         /// Its determinant.
         determinant: f64,
     },
+    /// Camera-path parameters that describe no usable path (zero frames, a radius of zero or
+    /// NaN, a turn past the side of the scene).
+    #[error("invalid camera path: {reason}")]
+    InvalidPath {
+        /// What is wrong.
+        reason: String,
+    },
     /// A zero-length vector where a direction was needed.
     #[error("{what} has zero length")]
     ZeroVector {

@@ -44,6 +44,7 @@ mod camera;
 mod error;
 mod homography;
 mod intrinsics;
+pub mod path;
 mod plane;
 mod pose;
 mod rotation;

@@ -115,6 +115,119 @@ pub fn analyse(mhi: &Mhi, targets: &[(&Camera, &[f32])], prune: Prune) -> Result
     views.finish(mhi)
 }
 
+/// The least clearance a camera path keeps from every plane of an MHI that holds something, as
+/// a fraction of the plane's own distance from the reference camera.
+pub const MIN_PATH_CLEARANCE: f64 = 0.05;
+
+/// A plane "holds something" when it carries at least this share of its normal's composite in
+/// the reference view (its alpha times the transmittance of the planes in front, averaged over
+/// the pixels): below it, what a camera behind the plane loses is a speck, not an object.
+pub const MIN_PLANE_SHARE: f64 = 0.01;
+
+/// Each layer's share of its normal's composite in the reference view (`N × D`, normal-major):
+/// `mean over pixels of α_j Π_{k nearer} (1 − α_k)`.
+pub fn reference_shares(mhi: &Mhi) -> Vec<f64> {
+    let (n, d) = (mhi.n(), mhi.d());
+    let px = mhi.reference().width as usize * mhi.reference().height as usize;
+    let mut shares = vec![0.0; n * d];
+    // Depths are far first: composite from the last (nearest) layer back.
+    let near_first: Vec<usize> = {
+        let mut v: Vec<usize> = (0..d).collect();
+        v.sort_by(|a, b| mhi.depths()[*a].total_cmp(&mhi.depths()[*b]));
+        v
+    };
+    for i in 0..n {
+        let mut transmittance = vec![1.0_f64; px];
+        for &j in &near_first {
+            let mut sum = 0.0;
+            for (t, &a) in transmittance.iter_mut().zip(mhi.alpha_layer(i, j)) {
+                let a = f64::from(a.clamp(0.0, 1.0));
+                sum += a * *t;
+                *t *= 1.0 - a;
+            }
+            shares[i * d + j] = sum / px as f64;
+        }
+    }
+    shares
+}
+
+/// How close a camera path comes to the planes of an MHI (see [`check_path`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PathClearance {
+    /// The smallest `(d − n·c) / d` over the path's camera centres `c` and the planes that
+    /// hold something (1 at the reference camera; 0 on a plane, negative behind it).
+    pub min_relative: f64,
+    /// The frame (0-based) and the layer `(normal, depth)` where it is reached.
+    pub frame: usize,
+    /// See [`PathClearance::frame`].
+    pub normal: usize,
+    /// See [`PathClearance::frame`].
+    pub depth: usize,
+}
+
+/// Check that no camera of `path` sits on or behind a plane of `mhi` that holds something (at
+/// least [`MIN_PLANE_SHARE`] of its normal's composite in the reference view, see
+/// [`reference_shares`]): from there the plane is invisible (the renderer masks it) and what it
+/// carries would vanish from the view. Every camera must keep at least [`MIN_PATH_CLEARANCE`] of
+/// each such plane's distance between itself and the plane.
+///
+/// # Errors
+/// [`Error::InvalidInput`] naming the first frame too close, the plane and the clearance, or
+/// an empty path. `Ok(None)` when no plane holds anything.
+pub fn check_path(mhi: &Mhi, path: &[Camera]) -> Result<Option<PathClearance>> {
+    if path.is_empty() {
+        return Err(Error::InvalidInput("the camera path is empty".into()));
+    }
+    let reference = mhi.reference();
+    let shares = reference_shares(mhi);
+    let mut worst: Option<PathClearance> = None;
+    for (frame, cam) in path.iter().enumerate() {
+        let c = reference
+            .cam_from_world
+            .transform_point(cam.center_in_world());
+        for normal in 0..mhi.n() {
+            for depth in 0..mhi.d() {
+                if shares[normal * mhi.d() + depth] < MIN_PLANE_SHARE {
+                    continue;
+                }
+                let plane = mhi.plane(normal, depth);
+                let rel = plane.signed_distance(c) / plane.d();
+                if !(rel >= MIN_PATH_CLEARANCE) {
+                    let n = plane.normal();
+                    return Err(Error::InvalidInput(format!(
+                        "camera {} of {} of the path is {} the plane of normal ({:+.2}, {:+.2}, {:+.2}) at depth {:.3}, which holds {:.0} % of what that normal shows (it keeps {:.1} % of the plane's distance; at least {:.0} % is needed, or what the plane holds would vanish from the view): shorten the path (a smaller radius or distance)",
+                        frame + 1,
+                        path.len(),
+                        if rel > 0.0 {
+                            "too close to"
+                        } else if rel == 0.0 {
+                            "on"
+                        } else {
+                            "behind"
+                        },
+                        n.x,
+                        n.y,
+                        n.z,
+                        plane.axis_depth(),
+                        100.0 * shares[normal * mhi.d() + depth],
+                        100.0 * rel,
+                        100.0 * MIN_PATH_CLEARANCE
+                    )));
+                }
+                if worst.is_none_or(|w| rel < w.min_relative) {
+                    worst = Some(PathClearance {
+                        min_relative: rel,
+                        frame,
+                        normal,
+                        depth,
+                    });
+                }
+            }
+        }
+    }
+    Ok(worst)
+}
+
 /// [`analyse`] one view at a time, so that a plan over any number of views holds one view's
 /// weights at a time: [`ViewsSeen::add`] each view, then [`ViewsSeen::finish`].
 #[derive(Debug, Clone)]

@@ -187,6 +187,46 @@ fn planes_behind_the_target_are_masked_not_nan() {
 }
 
 #[test]
+fn a_path_through_a_plane_that_holds_something_is_refused() {
+    use mhi_geom::path::dolly;
+    use mhi_render::plan::{MIN_PATH_CLEARANCE, check_path};
+    // Near plane at depth 1: a dolly 0.5 forward keeps half its distance, 0.97 keeps 3 %.
+    let mut mhi = random_mhi(3, 4, 16, 12, false, 9);
+    let r = *mhi.reference();
+    let near = check_path(&mhi, &dolly(&r, 0.5, 8).unwrap())
+        .unwrap()
+        .unwrap();
+    assert!((near.min_relative - 0.5).abs() < 1e-9, "{near:?}");
+    assert_eq!((near.frame, near.depth), (2, 3)); // a quarter period in, the nearest layer
+    // The dolly's frames 2 and 3 (1-based) are sin(45°) and 1 times the distance ahead.
+    for (distance, frame, word) in [
+        (0.97, 3, "too close to"),
+        (1.0, 3, "on"),
+        (1.5, 2, "behind"),
+    ] {
+        let e = check_path(&mhi, &dolly(&r, distance, 8).unwrap()).unwrap_err();
+        let want = format!("camera {frame} of 8 of the path is {word} the plane");
+        assert!(e.to_string().contains(&want), "{e}");
+    }
+    // A plane that holds nothing may be crossed: empty the nearest layer (depth 1) of every
+    // normal; the next is at 1.49.
+    let px = 16 * 12;
+    let mut alpha = mhi.alpha().to_vec();
+    for n in 0..3 {
+        alpha[(n * 4 + 3) * px..(n * 4 + 4) * px].fill(0.0);
+    }
+    mhi = with_layers(&mhi, mhi.color().clone(), alpha);
+    let c = check_path(&mhi, &dolly(&r, 1.3, 8).unwrap())
+        .unwrap()
+        .unwrap();
+    assert!(
+        c.min_relative >= MIN_PATH_CLEARANCE && c.depth == 2,
+        "{c:?}"
+    );
+    assert!(check_path(&mhi, &[]).is_err());
+}
+
+#[test]
 fn pruning_changes_little_and_reports_what_it_skipped() {
     let mut mhi = random_mhi(5, 16, 32, 24, false, 5);
     // Make half of the layers empty so the plan has something to skip.

@@ -6,6 +6,17 @@ const M = D.manifest;
 const W = M.width, H = M.height, N = M.normals.length;
 const hash = new URLSearchParams(location.hash.slice(1));
 if (hash.has("nohud")) document.body.classList.add("nohud");
+if (hash.has("novideo")) document.body.classList.add("novideo");
+// The rendered video of the camera path, beside the interactive view (#novideo hides it).
+if (typeof M.video === "string" && /^[\w.-]+\.mp4$/.test(M.video)) {
+  const v = document.createElement("video");
+  Object.assign(v, { id: "video", src: M.video, controls: true, loop: true, muted: true, autoplay: true, playsInline: true });
+  v.title = "the rendered video along the camera path";
+  // What the browser made of it, for a test reading the page (data-loaded="WxH" or data-error).
+  v.addEventListener("loadeddata", () => { v.dataset.loaded = v.videoWidth + "x" + v.videoHeight; });
+  v.addEventListener("error", () => { v.dataset.error = String(v.error && v.error.code); });
+  document.body.appendChild(v);
+}
 const canvas = document.getElementById("c");
 canvas.width = W; canvas.height = H;
 // Shown at the largest whole zoom that fits the window (#zoom=k fixes it), pixels kept square.

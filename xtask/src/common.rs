@@ -225,12 +225,12 @@ impl PlaneArgs {
 /// The most orbit frames a GIF takes: a minute at the orbit's 60 ms a frame.
 pub const MAX_ORBIT_FRAMES: usize = 1000;
 
-/// Refuse an orbit whose frames would not fit, with what it would cost: every frame is kept
-/// (enlarged to at least 256 px wide) until the GIF is encoded.
-pub fn check_orbit_frames(frames: usize) -> anyhow::Result<()> {
+/// Refuse a GIF whose frames (`flag`) would not fit, with what it would cost: every frame is
+/// kept (enlarged to at least 256 px wide) until the GIF is encoded.
+pub fn check_gif_frames(flag: &str, frames: usize) -> anyhow::Result<()> {
     if frames > MAX_ORBIT_FRAMES {
         anyhow::bail!(
-            "--orbit-frames {frames}: the orbit GIF keeps every frame in memory (about {:.1} GB for {frames} frames at 256 px wide) and plays for {:.0} s; at most {MAX_ORBIT_FRAMES} frames ({:.0} s)",
+            "{flag} {frames}: the GIF keeps every frame in memory (about {:.1} GB for {frames} frames at 256 px wide) and plays for {:.0} s; at most {MAX_ORBIT_FRAMES} frames ({:.0} s)",
             frames as f64 * 256.0 * 256.0 * 4.0 * 2.0 / 1e9,
             frames as f64 * 0.06,
             MAX_ORBIT_FRAMES as f64 * 0.06

@@ -22,8 +22,6 @@ pub struct Commands<'a> {
     pub eval: &'a dyn Fn(&EvalArgs) -> anyhow::Result<()>,
     /// `cargo xtask render`.
     pub render: &'a dyn Fn(&RenderArgs) -> anyhow::Result<()>,
-    /// `cargo xtask export`.
-    pub export: &'a dyn Fn(&RenderArgs) -> anyhow::Result<()>,
 }
 
 /// Options of `cargo xtask demo`.
@@ -113,29 +111,27 @@ pub fn demo(a: &DemoArgs, cmd: &Commands<'_>) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let (ra, rb) = example_photos();
     println!(
-        "[1/2] two plain photos ({}, {}): their poses, the pretrained MHI, {} orbit views",
+        "[1/1] two plain photos ({}, {}): their poses, the pretrained MHI, a video along the paper's circular path, the browser viewer",
         ra.display(),
         rb.display(),
-        30
     );
-    let args = |out: &Path| -> anyhow::Result<RenderArgs> {
-        let mut r = Wrap::<RenderArgs>::try_parse_from([
-            "xtask".as_ref(),
-            "--ref".as_ref(),
-            ra.as_os_str(),
-            "--src".as_ref(),
-            rb.as_os_str(),
-        ])?
-        .inner;
-        r.out = out.to_path_buf();
-        r.overwrite = true;
-        Ok(r)
-    };
-    (cmd.render)(&args(&a.out.join("views"))?)?;
-    println!("[2/2] the browser viewer");
-    (cmd.export)(&args(&a.out.join("viewer"))?)?;
+    let mut r = Wrap::<RenderArgs>::try_parse_from([
+        "xtask".as_ref(),
+        "--ref".as_ref(),
+        ra.as_os_str(),
+        "--src".as_ref(),
+        rb.as_os_str(),
+        "--path".as_ref(),
+        "circle".as_ref(),
+        "--gif".as_ref(),
+    ])?
+    .inner;
+    r.out = a.out.join("views");
+    r.export = Some(a.out.join("viewer"));
+    r.overwrite = true;
+    (cmd.render)(&r)?;
     println!(
-        "demo finished in {:.1} min: views and orbit.gif in {}, viewer {} (open it in a browser). \
+        "demo finished in {:.1} min: video.mp4 (and path.gif) in {}, viewer {} (open it in a browser: the video plays beside the interactive view). \
          The training and evaluation walk-through: cargo xtask demo --full",
         t0.elapsed().as_secs_f64() / 60.0,
         a.out.join("views").display(),
@@ -144,7 +140,6 @@ pub fn demo(a: &DemoArgs, cmd: &Commands<'_>) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `cargo xtask demo --full`.
 fn full(a: &DemoArgs, cmd: &Commands<'_>) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let stage = |k: usize, what: &str| {

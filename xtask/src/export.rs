@@ -100,13 +100,15 @@ struct Manifest<'a> {
     views: &'a [ViewerCamera],
     path: Vec<&'a ViewerCamera>,
     plan: &'a ScenePlan,
+    /// The video beside the interactive view (`video.mp4`), when one was rendered.
+    video: Option<&'static str>,
 }
 
 /// Write the viewer folder for `mhi` into `dir` (created if needed; files written atomically).
 /// Layers the plan leaves out are not written; a normal the plan drops keeps its farthest layer
 /// only (its blend weight is within the budget everywhere). `inputs` are the photos' cameras,
 /// `views` the listed target cameras (`#view=k` in the page's address shows the k-th), each
-/// with its name.
+/// with its name. `video` (an MP4's bytes) is shown beside the interactive view.
 pub fn write_viewer(
     dir: &Path,
     mhi: &Mhi,
@@ -114,6 +116,7 @@ pub fn write_viewer(
     source: &str,
     inputs: &[(&str, &Camera)],
     views: &[(String, &Camera)],
+    video: Option<&[u8]>,
 ) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let (w, h) = (
@@ -237,7 +240,11 @@ pub fn write_viewer(
         views: &views,
         path: inputs.iter().chain(&views).collect(),
         plan,
+        video: video.map(|_| "video.mp4"),
     };
+    if let Some(bytes) = video {
+        mhi_data::write_atomic(&dir.join("video.mp4"), bytes)?;
+    }
     let manifest_json = serde_json::to_string_pretty(&manifest)?;
     mhi_data::write_atomic(&dir.join("manifest.json"), manifest_json.as_bytes())?;
     let b64 = |v: &[u8]| base64::engine::general_purpose::STANDARD.encode(v);
@@ -340,6 +347,7 @@ mod tests {
             "test",
             &[("reference", &reference)],
             &[("target".to_string(), &target)],
+            None,
         )
         .unwrap();
         let manifest: serde_json::Value =

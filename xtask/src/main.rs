@@ -1,6 +1,7 @@
 //! `cargo xtask`: the project's command line. Each task lives in its own module.
 
 mod bench;
+mod camera_path;
 mod common;
 mod data;
 mod demo;
@@ -159,7 +160,6 @@ fn main() {
                 train: &train::train,
                 eval: &eval::eval,
                 render: &render::render,
-                export: &render::export,
             },
         ),
         Task::Render(a) => render::render(&a),

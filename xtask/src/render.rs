@@ -1,7 +1,8 @@
 //! `cargo xtask render`: novel views of a user's own two photos. The camera file (RealEstate10K
 //! format) holds the reference photo's camera on its first row, the source photo's on its second,
-//! and the cameras of the views to render on any further rows; an orbit GIF around the reference
-//! view is written too. The MHI comes from a trained run (`--run`) or the training-free sweep.
+//! and the cameras of the views to render on any further rows; a video along a camera path around
+//! the reference view (`--path`) is written too. The MHI comes from a trained run (`--run`) or the
+//! training-free sweep.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -16,7 +17,8 @@ use mhi_geom::{BlendHeuristic, Camera};
 use mhi_net::{MhiSource, Model, ViewSynthesis};
 use mhi_render::{Prune, SweepConfig, heuristic_weights_for};
 
-use crate::views::{clipped, enlarge, factor_for, orbit, view, write_gif};
+use crate::camera_path::PathKind;
+use crate::views::{clipped, enlarge, factor_for, view, write_gif};
 
 /// Options of `cargo xtask render`.
 #[derive(Args, Debug)]
@@ -59,13 +61,21 @@ pub struct RenderArgs {
     /// The sweep MHI's grid (with --sweep or without a model; a trained model keeps its own).
     #[command(flatten)]
     pub grid: crate::common::PlaneArgs,
-    /// Frames of the orbit GIF around the reference view (0: none).
-    #[arg(long, default_value_t = 30)]
-    pub orbit_frames: usize,
-    /// Orbit radius as a fraction of the distance between the two photos' cameras.
-    #[arg(long, default_value_t = 0.5)]
-    pub orbit_radius: f64,
-    /// Output directory (view_rowNNN.png per rendered camera row, orbit.gif).
+    /// The video's camera path around the reference view.
+    #[command(flatten)]
+    pub path: crate::camera_path::PathArgs,
+    /// Frames per second of the video.
+    #[arg(long, default_value_t = 30.0, allow_hyphen_values = true)]
+    pub fps: f64,
+    /// Write the video here instead of video.mp4 in --out (an existing file is replaced only
+    /// with --overwrite, and only if this tool wrote it).
+    #[arg(long)]
+    pub video: Option<PathBuf>,
+    /// Also write the path as an animated GIF (path.gif in --out: 256 colours, enlarged to at
+    /// least 256 pixels wide; plays where a video cannot, in a README for one).
+    #[arg(long)]
+    pub gif: bool,
+    /// Output directory (view_rowNNN.png per rendered camera row, video.mp4, plan.json).
     #[arg(long, default_value = "out/render")]
     pub out: PathBuf,
     /// Replace a render (or viewer) this command wrote before in --out. A folder holding files
@@ -114,10 +124,11 @@ fn check_args(a: &RenderArgs, file: &CameraFile, views_too: bool) -> anyhow::Res
             bail!("{what} {r}: {cameras} has camera rows 1 to {rows}");
         }
     }
-    if !(a.orbit_radius.is_finite() && a.orbit_radius > 0.0 && a.orbit_radius <= 10.0) {
+    a.path.check()?;
+    if !(a.fps.is_finite() && a.fps > 0.0 && a.fps <= 240.0) {
         bail!(
-            "--orbit-radius {} must be a number in (0, 10]: it is a fraction of the distance between the two photos' cameras (0.5 by default); farther, the orbit leaves what the photos saw",
-            a.orbit_radius
+            "--fps {} must be a number of frames per second in (0, 240]",
+            a.fps
         );
     }
     if a.reference == a.src {
@@ -138,8 +149,11 @@ fn check_args(a: &RenderArgs, file: &CameraFile, views_too: bool) -> anyhow::Res
             a.budget
         );
     }
-    if views_too {
-        crate::common::check_orbit_frames(a.orbit_frames)?;
+    if views_too && a.gif {
+        crate::common::check_gif_frames("--frames with --gif", a.path.frames)?;
+    }
+    if let Some(v) = &a.video {
+        check_video_file(v, &a.out, a.overwrite)?;
     }
     if a.export.is_some() || !views_too {
         let listed = rows - 2;
@@ -300,11 +314,23 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
     };
     let listed_count = file.rows.len() - 2;
     let baseline = (rf.camera.center_in_world() - sf.camera.center_in_world()).length();
-    let orbit_cams = if a.orbit_frames > 0 && views_too {
-        orbit_cameras(a, &mhi, &rf.camera, baseline)?
+    let path = if views_too {
+        // The listed rows as a path are held in memory only when they are asked for.
+        let rows_as_path = if a.path.kind() == PathKind::File && a.path.path_file.is_none() {
+            listed()
+                .map(|r| r.map(|(_, c)| c))
+                .collect::<anyhow::Result<Vec<_>>>()?
+        } else {
+            Vec::new()
+        };
+        crate::camera_path::plan(&a.path, &mhi, baseline, &rows_as_path)?
     } else {
-        Vec::new()
+        None
     };
+    if let Some(p) = &path {
+        println!("{}", p.summary);
+    }
+    let path_cams: &[Camera] = path.as_ref().map_or(&[], |p| &p.cameras);
     let prune = if a.exact {
         Prune::NONE
     } else {
@@ -317,10 +343,10 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
         _ => BlendHeuristic::Soft,
     };
     let mut seen = mhi_render::plan::ViewsSeen::new(&mhi, prune);
-    let pb = crate::progress::bar((listed_count + orbit_cams.len()) as u64, "plan");
+    let pb = crate::progress::bar((listed_count + path_cams.len()) as u64, "plan");
     for cam in listed()
         .map(|r| r.map(|(_, c)| c))
-        .chain(orbit_cams.iter().cloned().map(Ok))
+        .chain(path_cams.iter().cloned().map(Ok))
     {
         let cam = cam?;
         seen.add(
@@ -338,6 +364,26 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
     }))?;
     if a.explain {
         println!("{}", plan.explain());
+    }
+    let mut worst_bound = 0.0_f32;
+    let mut video = None;
+    if let Some(out) = &views_out {
+        mhi_data::write_atomic(&out.path().join("plan.json"), &plan_json)?;
+        let pb = crate::progress::bar(listed_count as u64, "views");
+        for r in listed() {
+            let (row, cam) = r?;
+            let (img, stats) = view(&mhi, model, &cam, prune)?;
+            worst_bound = worst_bound.max(stats.bound);
+            let path = out.path().join(format!("view_row{row:03}.png"));
+            mhi_data::write_png(&path, &mhi_data::to_u8(&clipped(&img)))?;
+            pb.inc(1);
+        }
+        pb.finish_and_clear();
+        if !path_cams.is_empty() {
+            let (v, bound) = path_video(a, &mhi, model, path_cams, prune, out.path())?;
+            worst_bound = worst_bound.max(bound);
+            video = Some(v);
+        }
     }
     if let Some(out) = &viewer_out {
         let inputs = [
@@ -357,34 +403,15 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
         if !views_too {
             mhi_data::write_atomic(&out.path().join("plan.json"), &plan_json)?;
         }
-        crate::export::write_viewer(out.path(), &mhi, &plan, source, &inputs, &names)?;
-    }
-    let mut worst_bound = 0.0_f32;
-    if let Some(out) = &views_out {
-        mhi_data::write_atomic(&out.path().join("plan.json"), &plan_json)?;
-        let pb = crate::progress::bar((listed_count + orbit_cams.len()) as u64, "render");
-        for r in listed() {
-            let (row, cam) = r?;
-            let (img, stats) = view(&mhi, model, &cam, prune)?;
-            worst_bound = worst_bound.max(stats.bound);
-            let path = out.path().join(format!("view_row{row:03}.png"));
-            mhi_data::write_png(&path, &mhi_data::to_u8(&clipped(&img)))?;
-            pb.inc(1);
-        }
-        if !orbit_cams.is_empty() {
-            let mut frames = Vec::new();
-            for cam in &orbit_cams {
-                let (img, stats) = view(&mhi, model, cam, prune)?;
-                worst_bound = worst_bound.max(stats.bound);
-                frames.push(enlarge(
-                    &mhi_data::to_u8(&clipped(&img)),
-                    factor_for(img.width(), 256),
-                ));
-                pb.inc(1);
-            }
-            write_gif(&out.path().join("orbit.gif"), &frames, 60)?;
-        }
-        pb.finish_and_clear();
+        crate::export::write_viewer(
+            out.path(),
+            &mhi,
+            &plan,
+            source,
+            &inputs,
+            &names,
+            video.as_ref().map(|v| &v.bytes[..]),
+        )?;
     }
     if let Some(out) = viewer_out {
         let dir = out.commit()?;
@@ -397,12 +424,19 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
     }
     if let Some(out) = views_out {
         let dir = out.commit()?;
+        let video_at = match (&video, &a.video) {
+            (None, _) => None,
+            (Some(v), Some(file)) => {
+                mhi_data::write_atomic(file, &v.bytes)?;
+                Some(file.clone())
+            }
+            (Some(_), None) => Some(dir.join(VIDEO_FILE)),
+        };
         println!(
             "{listed_count} view(s){} in {}; {}",
-            if orbit_cams.is_empty() {
-                ""
-            } else {
-                " and orbit.gif"
+            match &video_at {
+                Some(f) => format!(" and the path's video {}", f.display()),
+                None => String::new(),
             },
             dir.display(),
             if a.exact {
@@ -419,29 +453,105 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
     Ok(())
 }
 
-/// The orbit's cameras around the reference, turned toward the MHI's median depth.
-fn orbit_cameras(
+/// The video's file name in --out.
+pub const VIDEO_FILE: &str = "video.mp4";
+
+/// Refuse a --video file that is not ours to write: inside --out (swapped away with it), or an
+/// existing file without --overwrite, or one this tool did not write.
+fn check_video_file(file: &Path, out: &Path, overwrite: bool) -> anyhow::Result<()> {
+    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    if abs(file).starts_with(abs(out)) {
+        bail!(
+            "--video {} lies inside --out {}: the video is written there as {VIDEO_FILE} without --video",
+            file.display(),
+            out.display()
+        );
+    }
+    if file.extension().and_then(|e| e.to_str()) != Some("mp4") {
+        bail!("--video {}: the file name must end in .mp4", file.display());
+    }
+    match std::fs::symlink_metadata(file) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(e).with_context(|| format!("--video {}", file.display())),
+        Ok(_) if !overwrite => bail!(
+            "--video {} exists: pass --overwrite to replace it (only a video this tool wrote is replaced)",
+            file.display()
+        ),
+        Ok(m) if !m.is_file() => bail!(
+            "--video {} is not a regular file; it is left alone",
+            file.display()
+        ),
+        Ok(_) => {
+            use std::io::Read;
+            let mut head = Vec::new();
+            std::fs::File::open(file)
+                .and_then(|f| f.take(1 << 20).read_to_end(&mut head))
+                .with_context(|| format!("reading --video {}", file.display()))?;
+            let ours = head.get(4..8) == Some(b"ftyp")
+                && head
+                    .windows(mhi_video::TITLE.len())
+                    .any(|w| w == mhi_video::TITLE.as_bytes());
+            if !ours {
+                bail!(
+                    "--video {} is not a video this tool wrote; it is left alone even with --overwrite",
+                    file.display()
+                );
+            }
+            Ok(())
+        }
+    }
+}
+
+/// Render the path's cameras into an H.264 MP4 (and path.gif with --gif, in `dir`), printing
+/// the frame rates of rendering and encoding. Returns the video and the worst pruning bound.
+fn path_video(
     a: &RenderArgs,
     mhi: &mhi_render::Mhi,
-    reference: &Camera,
-    baseline: f64,
-) -> anyhow::Result<Vec<Camera>> {
-    let look_at = crate::views::median_depth(mhi);
-    let (cams, deg) = orbit(
-        reference,
-        a.orbit_radius * baseline,
-        a.orbit_frames,
-        look_at,
-    )?;
-    match look_at {
-        Some(z) => println!(
-            "orbit: {} cameras on a circle of radius {:.3}, turned toward the median depth {z:.3} (rotation up to {deg:.1} deg)",
-            cams.len(),
-            a.orbit_radius * baseline
-        ),
-        None => println!(
-            "orbit: nothing in front of the far plane; the cameras translate without turning"
-        ),
+    model: Option<&Model>,
+    cams: &[Camera],
+    prune: Prune,
+    dir: &Path,
+) -> anyhow::Result<(mhi_video::Video, f32)> {
+    let (w, h) = (mhi.reference().width, mhi.reference().height);
+    let mut enc = mhi_video::Mp4Encoder::new(w, h, a.fps)?;
+    let mut gif = Vec::new();
+    let (mut t_render, mut t_encode, mut bound) = (0.0_f64, 0.0_f64, 0.0_f32);
+    let pb = crate::progress::bar(cams.len() as u64, "video");
+    for cam in cams {
+        let t0 = Instant::now();
+        let (img, stats) = view(mhi, model, cam, prune)?;
+        let rgb = mhi_data::to_u8(&clipped(&img));
+        t_render += t0.elapsed().as_secs_f64();
+        bound = bound.max(stats.bound);
+        let t1 = Instant::now();
+        enc.push(&rgb)?;
+        t_encode += t1.elapsed().as_secs_f64();
+        if a.gif {
+            gif.push(enlarge(&rgb, factor_for(w, 256)));
+        }
+        pb.inc(1);
     }
-    Ok(cams)
+    let t1 = Instant::now();
+    let video = enc.finish()?;
+    t_encode += t1.elapsed().as_secs_f64();
+    pb.finish_and_clear();
+    if a.video.is_none() {
+        mhi_data::write_atomic(&dir.join(VIDEO_FILE), &video.bytes)?;
+    }
+    if a.gif {
+        write_gif(&dir.join("path.gif"), &gif, (1000.0 / a.fps).round() as u32)?;
+    }
+    let n = cams.len() as f64;
+    println!(
+        "video: {} frames {w}x{h} at {} fps ({:.1} s, {:.0} kB, {:.0} kB/s); render {:.1} frames/s, encode {:.0} frames/s (render and encode {:.1} frames/s)",
+        video.frames,
+        a.fps,
+        video.seconds(),
+        video.bytes.len() as f64 / 1e3,
+        video.bytes.len() as f64 / 1e3 / video.seconds(),
+        n / t_render.max(1e-9),
+        n / t_encode.max(1e-9),
+        n / (t_render + t_encode).max(1e-9)
+    );
+    Ok((video, bound))
 }

@@ -1,12 +1,11 @@
-//! Helpers shared by `eval`, `render` and `demo`: combining multi-normal images, a circular
-//! orbit of cameras, image sheets and animated GIFs.
+//! Helpers shared by `eval`, `render` and `demo`: one view of an MHI, image sheets and animated
+//! GIFs.
 
 use std::path::Path;
 
 use anyhow::Context;
-use glam::{DMat3, DVec3};
 use image::{Rgb32FImage, RgbImage, RgbaImage};
-use mhi_geom::{Camera, RigidTransform};
+use mhi_geom::Camera;
 use mhi_net::Model;
 use mhi_render::{Mhi, Prune, RenderStats};
 
@@ -36,48 +35,6 @@ pub fn clipped(img: &Rgb32FImage) -> Rgb32FImage {
         }
     }
     o
-}
-
-/// Cameras on a circle of `radius` around the reference camera's centre, in its image plane
-/// (x right, y down), each turned to look at the point `look_at` units along the reference's
-/// optical axis (as a hand-held orbit does; `None` keeps the reference's orientation, a pure
-/// translation). Returns the cameras and the largest rotation from the reference, in degrees.
-pub fn orbit(
-    reference: &Camera,
-    radius: f64,
-    frames: usize,
-    look_at: Option<f64>,
-) -> anyhow::Result<(Vec<Camera>, f64)> {
-    let world_from_ref = reference.cam_from_world.inverse();
-    let r_ref: DMat3 = reference.cam_from_world.rotation();
-    let mut max_deg = 0.0_f64;
-    let cams = (0..frames)
-        .map(|k| {
-            let th = std::f64::consts::TAU * k as f64 / frames as f64;
-            let offset_cam = DVec3::new(radius * th.cos(), radius * th.sin(), 0.0);
-            // cam_from_ref rotation: rows are the new camera's axes in the reference frame.
-            let turn = match look_at {
-                Some(z) if z.is_finite() && z > 0.0 => {
-                    let fwd = (DVec3::new(0.0, 0.0, z) - offset_cam).normalize();
-                    let right = DVec3::Y.cross(fwd).normalize();
-                    let down = fwd.cross(right);
-                    DMat3::from_cols(right, down, fwd).transpose()
-                }
-                _ => DMat3::IDENTITY,
-            };
-            max_deg = max_deg.max(mhi_geom::rotation_angle_deg(&turn));
-            let center = world_from_ref.transform_point(offset_cam);
-            let r = turn * r_ref;
-            let pose = RigidTransform::new(r, -(r * center))?;
-            Ok(Camera::new(
-                reference.intrinsics,
-                pose,
-                reference.width,
-                reference.height,
-            )?)
-        })
-        .collect::<anyhow::Result<Vec<_>>>()?;
-    Ok((cams, max_deg))
 }
 
 /// The median depth the MHI sees from its reference camera: the median over pixels of the

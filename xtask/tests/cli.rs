@@ -658,7 +658,7 @@ fn render_names_the_bad_camera_row_and_refuses_missing_rows() {
             "--planes".into(),
             "4".into(),
             "--sweep".into(),
-            "--orbit-frames".into(),
+            "--frames".into(),
             "2".into(),
             "--out".into(),
             out.to_str().unwrap().into(),
@@ -670,10 +670,10 @@ fn render_names_the_bad_camera_row_and_refuses_missing_rows() {
         let refs: Vec<&str> = v.iter().map(String::as_str).collect();
         xtask(&refs)
     };
-    // A good file renders rows 2 and 4 and the orbit.
+    // A good file renders rows 2 and 4 and the orbit's video.
     let o = run(base(cams.to_str().unwrap(), &[]));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert!(out.join("view_row002.png").is_file() && out.join("orbit.gif").is_file());
+    assert!(out.join("view_row002.png").is_file() && out.join("video.mp4").is_file());
     // Again without --overwrite: refused.
     let v = base(cams.to_str().unwrap(), &[]);
     let err = fails(&v.iter().map(String::as_str).collect::<Vec<_>>());
@@ -717,6 +717,113 @@ fn render_names_the_bad_camera_row_and_refuses_missing_rows() {
         );
         let err = fails(&v.iter().map(String::as_str).collect::<Vec<_>>());
         assert!(err.contains("--orbit-radius"), "{r}: {err}");
+    }
+    // Paths that cannot be: each refused with what is wrong, nothing written.
+    // `base` with `flags`, a flag it holds already taking the new value.
+    let with = |flags: &[&str]| -> Vec<String> {
+        let mut v = base(cams.to_str().unwrap(), &[]);
+        let mut k = 0;
+        while k < flags.len() {
+            let f = flags[k];
+            let value = flags.get(k + 1).filter(|x| !x.starts_with("--"));
+            match (v.iter().position(|x| x == f), value) {
+                (Some(i), Some(x)) => v[i + 1] = x.to_string(),
+                (Some(_), None) => {}
+                (None, _) => v.extend(std::iter::once(f).chain(value.copied()).map(String::from)),
+            }
+            k += 1 + usize::from(value.is_some());
+        }
+        v
+    };
+    let fails_with = |flags: &[&str]| {
+        let v = with(flags);
+        fails(&v.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    for (extra, says) in [
+        (&["--radius", "0"][..], "--radius 0 must be a finite length"),
+        (
+            &["--radius", "nan"][..],
+            "--radius NaN must be a finite length",
+        ),
+        (&["--path", "circle", "--frames", "0"][..], "zero frames"),
+        (
+            &["--path", "circle", "--step", "5", "--frames", "60"][..],
+            "up to 75.0°",
+        ),
+        (
+            &["--path", "circle", "--step", "-1"][..],
+            "finite angle above zero",
+        ),
+        (
+            &["--path", "dolly", "--radius", "200", "--frames", "4"][..],
+            "behind the plane",
+        ),
+        (&["--path", "orbit", "--fps", "0"][..], "--fps 0"),
+        (&["--path-file", "x.txt"][..], "add --path file"),
+    ] {
+        let mut e = vec!["--overwrite"];
+        e.extend_from_slice(extra);
+        let before = std::fs::read(out.join("video.mp4")).unwrap();
+        let err = fails_with(&e);
+        assert!(err.contains(says), "{extra:?}: {err}");
+        assert_eq!(std::fs::read(out.join("video.mp4")).unwrap(), before);
+    }
+    // Every path makes a video of its frames (file: the listed rows 2 and 4).
+    for (path, frames) in [
+        ("orbit", 4),
+        ("circle", 4),
+        ("spiral", 4),
+        ("dolly", 4),
+        ("file", 2),
+    ] {
+        let o = run(with(&[
+            "--overwrite",
+            "--path",
+            path,
+            "--frames",
+            "4",
+            "--gif",
+        ]));
+        assert!(
+            o.status.success(),
+            "{path}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let said = String::from_utf8_lossy(&o.stdout);
+        assert!(
+            said.contains("path: ") && said.contains("rotation up to"),
+            "{said}"
+        );
+        let video = mhi_video::decode_mp4(&std::fs::read(out.join("video.mp4")).unwrap()).unwrap();
+        assert_eq!(
+            (video.frames.len(), video.width, video.height),
+            (frames, 32, 24),
+            "{path}"
+        );
+        assert!(out.join("path.gif").is_file());
+    }
+    // --video: a file of its own, never one of the user's.
+    let mine = d.path().join("mine.mp4");
+    std::fs::write(&mine, b"the user's holiday video").unwrap();
+    for extra in [
+        &["--video", mine.to_str().unwrap()][..],
+        &["--overwrite", "--video", mine.to_str().unwrap()][..],
+    ] {
+        let err = fails_with(extra);
+        assert!(err.contains("mine.mp4"), "{err}");
+        assert_eq!(std::fs::read(&mine).unwrap(), b"the user's holiday video");
+    }
+    let ours = d.path().join("ours.mp4");
+    for _ in 0..2 {
+        let o = run(with(&["--overwrite", "--video", ours.to_str().unwrap()]));
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(
+            mhi_video::decode_mp4(&std::fs::read(&ours).unwrap())
+                .unwrap()
+                .frames
+                .len(),
+            2
+        );
     }
     // The same photo twice.
     let mut v = base(cams.to_str().unwrap(), &["--overwrite"]);

@@ -99,7 +99,7 @@ impl Scene {
             "--planes",
             "4",
             "--sweep",
-            "--orbit-frames",
+            "--frames",
             "2",
             "--out",
             out,
@@ -296,7 +296,7 @@ fn an_interrupted_render_leaves_the_old_output_whole() {
         let args = s.render(
             "render",
             &o,
-            &["--overwrite", "--orbit-frames", "900", "--size", "64x48"],
+            &["--overwrite", "--frames", "900", "--size", "64x48"],
         );
         let mut child = Command::new(env!("CARGO_BIN_EXE_xtask"))
             .args(&args)
@@ -397,7 +397,7 @@ fn a_million_camera_rows_stream_under_a_memory_cap() {
     let mut args = s.render(
         "render",
         views.to_str().unwrap(),
-        &["--size", "32x24", "--exact", "--orbit-frames", "0"],
+        &["--size", "32x24", "--exact", "--frames", "0"],
     );
     args[8] = &cams;
     let line = args
@@ -439,13 +439,15 @@ fn a_million_camera_rows_stream_under_a_memory_cap() {
 fn absurd_counts_are_refused_with_their_cost() {
     let s = scene();
     let out = s.tmp().join("views");
+    let err = fails(&s.render("render", out.to_str().unwrap(), &["--frames", "100000"]));
+    assert!(err.contains("--frames 100000: at most 10000"), "{err}");
     let err = fails(&s.render(
         "render",
         out.to_str().unwrap(),
-        &["--orbit-frames", "100000"],
+        &["--frames", "5000", "--gif"],
     ));
     assert!(
-        err.contains("--orbit-frames 100000") && err.contains("GB"),
+        err.contains("--frames with --gif 5000") && err.contains("GB"),
         "{err}"
     );
     let data = s.root.to_str().unwrap();
@@ -613,13 +615,13 @@ fn two_plain_photos_give_poses_and_views() {
         "--sweep",
         "--planes",
         "8",
-        "--orbit-frames",
+        "--frames",
         "3",
         "--out",
         views.to_str().unwrap(),
     ]);
     assert!(said.contains("poses of"), "{said}");
-    assert!(views.join("orbit.gif").is_file() && views.join("plan.json").is_file());
+    assert!(views.join("video.mp4").is_file() && views.join("plan.json").is_file());
     let err = fails(&[
         "pose",
         &a,

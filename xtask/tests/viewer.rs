@@ -27,13 +27,10 @@ fn xtask(args: &[&str]) {
     );
 }
 
-#[test]
-fn the_browser_viewer_agrees_with_the_cpu_renderer() {
-    let Some(browser) = chromium_or_skip() else {
-        return;
-    };
-    let d = tempfile::tempdir().unwrap();
-    let data = d.path().join("data");
+/// A synthetic sequence in `dir` and a camera file of six of its rows: reference (frame 0),
+/// targets (frames 1, 2, 4), source (frame 3). Returns the two photos and the file.
+fn scene(dir: &std::path::Path) -> (String, String, std::path::PathBuf) {
+    let data = dir.join("data");
     generate(
         &SynthConfig {
             scenes: 1,
@@ -58,7 +55,7 @@ fn the_browser_viewer_agrees_with_the_cpu_renderer() {
     let text = std::fs::read_to_string(&file).unwrap();
     let lines: Vec<&str> = text.lines().collect();
     // Rows: reference (frame 0), targets (frames 1, 2, 4), source (frame 3).
-    let cams = d.path().join("cams.txt");
+    let cams = dir.join("cams.txt");
     std::fs::write(
         &cams,
         [lines[0], lines[1], lines[2], lines[3], lines[4], lines[5]].join("\n"),
@@ -68,7 +65,16 @@ fn the_browser_viewer_agrees_with_the_cpu_renderer() {
         let ts = lines[row].split_whitespace().next().unwrap();
         seq.join(format!("{ts}.png")).display().to_string()
     };
-    let (rf, sf) = (frame(1), frame(4));
+    (frame(1), frame(4), cams)
+}
+
+#[test]
+fn the_browser_viewer_agrees_with_the_cpu_renderer() {
+    let Some(browser) = chromium_or_skip() else {
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let (rf, sf, cams) = scene(d.path());
     let common = [
         "--ref",
         &rf,
@@ -92,13 +98,7 @@ fn the_browser_viewer_agrees_with_the_cpu_renderer() {
     xtask(&args);
     let mut args = vec!["render"];
     args.extend(common);
-    args.extend([
-        "--exact",
-        "--orbit-frames",
-        "0",
-        "--out",
-        cpu.to_str().unwrap(),
-    ]);
+    args.extend(["--exact", "--frames", "0", "--out", cpu.to_str().unwrap()]);
     xtask(&args);
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(viewer.join("manifest.json")).unwrap())
@@ -162,5 +162,91 @@ fn the_browser_viewer_agrees_with_the_cpu_renderer() {
     assert!(
         dom.contains("&lt;img src=x"),
         "the URL is shown as text:\n{dom}"
+    );
+}
+
+fn psnr(a: &image::RgbImage, b: &image::RgbImage) -> f64 {
+    assert_eq!(a.dimensions(), b.dimensions());
+    let mse = a
+        .as_raw()
+        .iter()
+        .zip(b.as_raw())
+        .map(|(p, q)| (f64::from(*p) - f64::from(*q)).powi(2))
+        .sum::<f64>()
+        / a.as_raw().len() as f64;
+    10.0 * (255.0_f64.powi(2) / mse.max(1e-12)).log10()
+}
+
+/// The path's video holds the views the PNGs hold (camera rows 2 and 3 as the path), frame for
+/// frame, and plays in the browser beside the viewer.
+#[test]
+fn the_video_decodes_to_the_rendered_views_and_plays_in_the_browser() {
+    let d = tempfile::tempdir().unwrap();
+    let (rf, sf, cams) = scene(d.path());
+    let (out, viewer) = (d.path().join("views"), d.path().join("viewer"));
+    // Row 5 passes behind a tilted plane near the sweep's front: not on the path.
+    let text = std::fs::read_to_string(&cams).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    let path_file = d.path().join("path.txt");
+    std::fs::write(&path_file, [lines[0], lines[2], lines[3]].join("\n")).unwrap();
+    xtask(&[
+        "render",
+        "--ref",
+        &rf,
+        "--src",
+        &sf,
+        "--src-row",
+        "4",
+        "--cameras",
+        cams.to_str().unwrap(),
+        "--sweep",
+        "--planes",
+        "12",
+        "--size",
+        "128x96",
+        "--exact",
+        "--path",
+        "file",
+        "--path-file",
+        path_file.to_str().unwrap(),
+        "--fps",
+        "10",
+        "--out",
+        out.to_str().unwrap(),
+        "--export",
+        viewer.to_str().unwrap(),
+    ]);
+    if let Ok(keep) = std::env::var("MHI_KEEP") {
+        let _ = std::process::Command::new("cp")
+            .args(["-r", out.to_str().unwrap(), &keep])
+            .status();
+    }
+    let bytes = std::fs::read(out.join("video.mp4")).unwrap();
+    let video = mhi_video::decode_mp4(&bytes).unwrap();
+    assert_eq!(
+        (video.frames.len(), video.width, video.height),
+        (2, 128, 96),
+        "the path is the path file's two rows"
+    );
+    assert!((video.fps - 10.0).abs() < 0.01, "{}", video.fps);
+    for (frame, row) in video.frames.iter().zip([2, 3]) {
+        let png = image::open(out.join(format!("view_row{row:03}.png")))
+            .unwrap()
+            .to_rgb8();
+        let db = psnr(frame, &png);
+        eprintln!("camera row {row}: video frame vs PNG {db:.2} dB");
+        assert!(db >= 35.0, "camera row {row}: {db:.2} dB < 35 dB");
+    }
+    // The frames differ: the path moves.
+    assert!(psnr(&video.frames[0], &video.frames[1]) < 30.0);
+    assert_eq!(std::fs::read(viewer.join("video.mp4")).unwrap(), bytes);
+    let Some(browser) = chromium_or_skip() else {
+        return;
+    };
+    let dom = dump_dom(&browser, &viewer.join("index.html"), "", d.path());
+    assert!(
+        dom.contains("data-loaded=\"128x96\""),
+        "the browser did not play the video:\n{}",
+        &dom[..dom.len().min(2000)]
     );
 }

@@ -154,7 +154,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             );
         }
     }
-    crate::common::check_orbit_frames(a.orbit_frames)?;
+    crate::common::check_gif_frames("--orbit-frames", a.orbit_frames)?;
     let report = StagedDir::begin(&a.out, "eval report", a.overwrite)?;
     let viewer = a
         .export

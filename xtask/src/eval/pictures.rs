@@ -166,18 +166,19 @@ pub(super) fn write_layers_and_orbit(
                 ("source photo", &sf.camera),
             ],
             &[("target photo".to_string(), &tf.camera)],
+            None,
         )?;
     }
     let mut rotation = None;
     if a.orbit_frames > 0 {
         let baseline = (rf.camera.center_in_world() - sf.camera.center_in_world()).length();
-        let (cams, deg) = crate::views::orbit(
+        let cams = mhi_geom::path::orbit(
             &rf.camera,
             0.5 * baseline,
             a.orbit_frames,
             crate::views::median_depth(&mhi),
         )?;
-        rotation = Some(deg);
+        rotation = Some(mhi_geom::path::PathRange::of(&rf.camera, &cams).max_rotation_deg);
         let mut frames = Vec::new();
         for c in &cams {
             let (img, _) = crate::views::view(&mhi, synth.model(), c, a.prune())?;

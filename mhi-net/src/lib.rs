@@ -44,7 +44,7 @@
 
 pub mod backbone;
 mod config;
-pub mod fastconv;
+pub use mhi_kernels as fastconv;
 pub mod loss;
 mod model;
 mod nets;

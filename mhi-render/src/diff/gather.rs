@@ -18,8 +18,8 @@ use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
 use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
 use burn::backend::tensor::FloatTensor;
-use burn::backend::{Backend, DispatchDevice, TensorMetadata, backend_extension};
-use burn::tensor::{DType, Device, Tensor, TensorData};
+use burn::backend::{Backend, TensorMetadata, backend_extension};
+use burn::tensor::{Tensor, TensorData};
 use burn_flex::{Flex, FlexTensor};
 use rayon::prelude::*;
 
@@ -138,14 +138,7 @@ pub trait WarpOps: Backend {
     fn gather_warp_backward(grad: FloatTensor<Self>, taps: Arc<Taps>) -> FloatTensor<Self>;
 }
 
-/// Whether `device` is the CPU backend (plain or autodiff), where the project's own kernels
-/// (this warp, `mhi_net::fastconv`) run.
-pub fn on_cpu_backend(device: &Device) -> bool {
-    matches!(
-        device.as_dispatch().clone().inner(),
-        DispatchDevice::Flex(_)
-    )
-}
+pub use mhi_kernels::on_cpu_backend;
 
 /// Warp `layers` (`[L, C, Hr, Wr]`) through `taps`: `[L, C, H, W]`.
 pub fn warp(layers: Tensor<4>, taps: &Arc<Taps>) -> Tensor<4> {
@@ -154,15 +147,7 @@ pub fn warp(layers: Tensor<4>, taps: &Arc<Taps>) -> Tensor<4> {
     Tensor::<4>::from_dispatch(out)
 }
 
-/// `t` contiguous in f32 (the models' dtype; other dtypes are converted), for a kernel that reads
-/// its storage as a slice.
-pub fn f32_contiguous(t: FlexTensor) -> FlexTensor {
-    if t.dtype() == DType::F32 {
-        t.to_contiguous()
-    } else {
-        FlexTensor::from_data(t.into_data().convert::<f32>())
-    }
-}
+pub use mhi_kernels::f32_contiguous;
 
 impl WarpOps for Flex {
     fn gather_warp(layers: FlexTensor, taps: Arc<Taps>) -> FlexTensor {

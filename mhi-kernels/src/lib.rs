@@ -49,7 +49,26 @@ use burn::tensor::{DType, Tensor};
 use burn_flex::{Flex, FlexTensor};
 
 use kernel::ConvShape;
-use mhi_render::diff::gather::f32_contiguous as f32s;
+
+/// `t` contiguous in f32 (the models' dtype; other dtypes are converted), for a kernel that reads
+/// its storage as a slice.
+pub fn f32_contiguous(t: FlexTensor) -> FlexTensor {
+    if t.dtype() == DType::F32 {
+        t.to_contiguous()
+    } else {
+        FlexTensor::from_data(t.into_data().convert::<f32>())
+    }
+}
+use f32_contiguous as f32s;
+
+/// Whether `device` is the CPU backend (plain or autodiff), where the project's own kernels
+/// (these, and `mhi-render`'s differentiable warp) run.
+pub fn on_cpu_backend(device: &burn::tensor::Device) -> bool {
+    matches!(
+        device.as_dispatch().clone().inner(),
+        burn::backend::DispatchDevice::Flex(_)
+    )
+}
 
 /// The convolution and its two gradients, the layer norm over channels and its gradients, and max
 /// pooling and its gradient, as backend operations.
@@ -179,7 +198,7 @@ pub fn conv3d(
 
 /// Whether `x` lives on the CPU backend (plain or autodiff), where [`FastOps`] runs its kernels.
 fn on_flex<const D: usize>(x: &Tensor<D>) -> bool {
-    mhi_render::diff::gather::on_cpu_backend(&x.device())
+    on_cpu_backend(&x.device())
 }
 
 /// Layer normalisation of `x` (`[B, C, …]`) over its channel axis with `norm`'s scale and shift

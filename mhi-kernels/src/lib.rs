@@ -15,7 +15,7 @@
 //!
 //! # The kernels, in one paragraph
 //!
-//! `fastconv/` (the CPU backend's own kernels as a burn backend extension `FastOps`, each with its
+//! This crate (the CPU backend's own kernels as a burn backend extension `FastOps`, each with its
 //! autodiff backward: `kernel.rs` the 3D convolution and its two gradients — convolutions of few
 //! output channels with stride 1 in depth directly, on the padded input split into its polyphase
 //! components (one for stride 1, four for stride 2 in the image axes) and read in place at a

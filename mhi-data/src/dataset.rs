@@ -277,23 +277,97 @@ impl Dataset {
 
     /// Keep only the named sequences (`keep = true`) or all but them (`keep = false`). Every
     /// name must be a sequence of the dataset: a typo is an error listing the names there are.
+    ///
+    /// A name `SEQ@FROM..TO` (or `SEQ@FROM..`, to its end) names a stretch of a sequence instead:
+    /// its frames `FROM..TO` in timestamp order, 0-based. Kept, the stretch becomes a sequence of
+    /// its own (`SEQ@FROM..TO`); left out, what remains before and after it becomes one or two
+    /// (`SEQ@0..FROM`, `SEQ@TO..N`), so no triplet spans the stretch. A long walkthrough can so
+    /// give its last part to validation and the rest to training.
     pub fn select(mut self, names: &[String], keep: bool) -> Result<Self> {
+        let mut stretches = Vec::new();
         for n in names {
-            if !self.sequences.iter().any(|s| &s.name == n) {
+            let (seq, range) = match n.split_once('@') {
+                Some((seq, range)) => (seq, Some(range)),
+                None => (n.as_str(), None),
+            };
+            let Some(s) = self.sequences.iter().find(|s| s.name == seq) else {
                 let have: Vec<&str> = self.sequences.iter().map(|s| s.name.as_str()).collect();
                 return Err(Error::Dataset {
                     path: self.dir.clone(),
                     fault: format!(
-                        "no sequence named {n:?}; the sequences are: {}",
+                        "no sequence named {seq:?}; the sequences are: {}",
                         have.join(", ")
                     ),
                 });
+            };
+            if let Some(range) = range {
+                let (from, to) =
+                    parse_stretch(range, s.frames.len()).map_err(|fault| Error::Dataset {
+                        path: self.dir.clone(),
+                        fault: format!("{n:?}: {fault}"),
+                    })?;
+                stretches.push((seq.to_string(), from, to));
             }
         }
-        self.sequences
-            .retain(|s| names.iter().any(|n| n == &s.name) == keep);
+        let whole = |s: &Sequence| names.iter().any(|n| n == &s.name);
+        let mut out = Vec::new();
+        for s in std::mem::take(&mut self.sequences) {
+            let cut: Vec<(usize, usize)> = stretches
+                .iter()
+                .filter(|(seq, _, _)| *seq == s.name)
+                .map(|&(_, a, b)| (a, b))
+                .collect();
+            if cut.is_empty() {
+                if whole(&s) == keep {
+                    out.push(s);
+                }
+                continue;
+            }
+            let n = s.frames.len();
+            let inside = |k: usize| cut.iter().any(|&(a, b)| (a..b).contains(&k));
+            // Maximal runs of frames on the kept side, each a sequence of its own.
+            let mut k = 0;
+            while k < n {
+                if inside(k) != keep {
+                    k += 1;
+                    continue;
+                }
+                let start = k;
+                while k < n && inside(k) == keep {
+                    k += 1;
+                }
+                out.push(Sequence {
+                    name: format!("{}@{start}..{k}", s.name),
+                    camera_file: s.camera_file.clone(),
+                    frames: s.frames[start..k].to_vec(),
+                });
+            }
+        }
+        self.sequences = out;
         Ok(self)
     }
+}
+
+/// `FROM..TO` or `FROM..` over `n` frames: a non-empty stretch inside them.
+fn parse_stretch(range: &str, n: usize) -> std::result::Result<(usize, usize), String> {
+    let bad = || {
+        format!(
+            "a stretch is FROM..TO or FROM.. (frame indices from 0 in timestamp order; the sequence has {n} frames)"
+        )
+    };
+    let (a, b) = range.split_once("..").ok_or_else(bad)?;
+    let from: usize = a.trim().parse().map_err(|_| bad())?;
+    let to: usize = if b.trim().is_empty() {
+        n
+    } else {
+        b.trim().parse().map_err(|_| bad())?
+    };
+    if from >= to || to > n {
+        return Err(format!(
+            "frames {from}..{to} are not a non-empty stretch of the sequence's {n} frames"
+        ));
+    }
+    Ok((from, to))
 }
 
 /// The folder name that stands for a root (its last path component).

@@ -170,6 +170,62 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
 
     #[test]
+    fn a_stretch_of_a_sequence_is_held_out_and_training_never_spans_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let c = SynthConfig {
+            scenes: 1,
+            frames: 10,
+            width: 16,
+            height: 12,
+            seed: 3,
+            test_fraction: 0.0,
+            val_fraction: 0.0,
+            ..SynthConfig::default()
+        };
+        generate(&c, dir.path(), &|| {}).unwrap();
+        let ds = || Dataset::open(dir.path(), "train", 3).unwrap();
+        let seq = ds().sequences[0].clone();
+        let shape = |d: &Dataset| -> Vec<(String, usize)> {
+            d.sequences
+                .iter()
+                .map(|s| (s.name.clone(), s.frames.len()))
+                .collect()
+        };
+        let name = &seq.name;
+        // The tail to validation, the rest to training.
+        let tail = vec![format!("{name}@6..")];
+        assert_eq!(
+            shape(&ds().select(&tail, true).unwrap()),
+            [(format!("{name}@6..10"), 4)]
+        );
+        assert_eq!(
+            shape(&ds().select(&tail, false).unwrap()),
+            [(format!("{name}@0..6"), 6)]
+        );
+        // A stretch from the middle leaves two training pieces, so no triplet spans it.
+        let mid = vec![format!("{name}@3..6")];
+        assert_eq!(
+            shape(&ds().select(&mid, false).unwrap()),
+            [(format!("{name}@0..3"), 3), (format!("{name}@6..10"), 4)]
+        );
+        let kept = ds().select(&mid, true).unwrap();
+        assert_eq!(kept.sequences[0].frames, seq.frames[3..6]);
+        // Through a source, as `train --holdout ROOT/SEQ@FROM..` gives it.
+        let source = DataSource {
+            holdout: tail.clone(),
+            ..DataSource::train(dir.path())
+        };
+        let train = DataMix::training(std::slice::from_ref(&source)).unwrap();
+        let val = DataMix::validation(&[source]).unwrap().unwrap();
+        assert_eq!(train.sequences() + val.sequences(), 2);
+        // Stretches that are not one.
+        for bad in ["@6..6", "@8..3", "@0..11", "@x..", "@3", "@..4"] {
+            let e = ds().select(&[format!("{name}{bad}")], true).unwrap_err();
+            assert!(e.to_string().contains("stretch"), "{bad}: {e}");
+        }
+    }
+
+    #[test]
     fn mix_draws_by_weight_and_keeps_holdouts_out() {
         let a = tempfile::tempdir().unwrap();
         let b = tempfile::tempdir().unwrap();

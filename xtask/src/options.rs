@@ -94,7 +94,10 @@ pub struct TrainArgs {
     #[arg(long = "data-weight", value_delimiter = ',')]
     pub data_weights: Vec<f64>,
     /// Sequences kept out of training for validation, as ROOT/SEQUENCE with ROOT the folder name
-    /// of a --data root (e.g. `llff-6/room`); comma-separated or repeated.
+    /// of a --data root (e.g. `llff-6/room`), or a stretch of one as ROOT/SEQUENCE@FROM..TO or
+    /// @FROM.. (frames from 0 in timestamp order; e.g. `hololens-1/hololens-000@300..` gives a
+    /// walkthrough's last 73 frames to validation, the rest to training); comma-separated or
+    /// repeated.
     #[arg(long, value_delimiter = ',')]
     pub holdout: Vec<String>,
     /// Chance that a training triplet is an extrapolation (the target outside the two inputs)

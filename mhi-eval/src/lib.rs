@@ -1,6 +1,7 @@
 //! Image-quality metrics of view synthesis (PSNR and SSIM on plain `image` types; LPIPS lives
 //! with the pretrained backbones in `mhi-net`), the aggregation of per-view scores into report
-//! rows and tables ([`report`]), and the report's figures ([`plot`]).
+//! rows and tables ([`report`]), the report's figures ([`plot`]), and the evaluation protocol
+//! that ties them together, with methods plugged in through a trait ([`protocol`]).
 //!
 //! # Example
 //!
@@ -17,6 +18,7 @@
 pub mod coverage;
 mod metrics;
 pub mod plot;
+pub mod protocol;
 pub mod report;
 pub mod stats;
 

@@ -22,20 +22,7 @@ pub fn view(
     Ok((v.image, v.stats))
 }
 
-/// Clamp every channel to [0, 1] (what is shown and scored).
-pub fn clipped(img: &Rgb32FImage) -> Rgb32FImage {
-    let mut o = img.clone();
-    for p in o.pixels_mut() {
-        for c in &mut p.0 {
-            *c = if c.is_finite() {
-                c.clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-        }
-    }
-    o
-}
+pub use mhi_eval::protocol::clipped;
 
 /// The median depth the MHI sees from its reference camera: the median over pixels of the
 /// expected disparity through the normal closest to the optical axis, inverted. `None` when

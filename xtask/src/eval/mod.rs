@@ -14,6 +14,7 @@ use mhi_data::sanitize::for_markdown;
 use mhi_data::{Dataset, Fit, LoadedFrame, TripletIndex, TripletKind, load_frame, load_scene};
 use mhi_eval::Bootstrap;
 use mhi_eval::plot::{Curve, TimePoint};
+use mhi_eval::protocol::{self, MethodError};
 use mhi_eval::report::{self, Comparison, Config, Measurement, Row, Times, config_label};
 use mhi_geom::{BlendHeuristic, NormalSet};
 use mhi_net::backbone::{Backbone, Net};
@@ -406,43 +407,22 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
         }
         let gt = &tf.image;
         let covered = mhi_eval::covered_mask(&rf.camera, &tf.camera, a.range.far);
-        let covered_fraction = mhi_eval::coverage::fraction(&covered);
-        let kind = match t.kind {
-            TripletKind::Interpolation => "interpolation",
-            TripletKind::Extrapolation => "extrapolation",
+        let lpips = |x: &Rgb32FImage, y: &Rgb32FImage| -> Result<f64, MethodError> {
+            let net = lpips_net.as_ref().expect("only called with a network");
+            Ok(lpips_of(net, x, y, &cpu)?)
         };
-        let bin = t.bin.key().to_string();
         for o in &outputs {
             let img = clipped(&o.image);
-            let pasted = with_uncovered_from(&img, gt, &covered);
-            let (lpips, lpips_covered) = match &lpips_net {
-                Some(net) => (
-                    Some(lpips_of(net, &img, gt, &cpu)?),
-                    (covered_fraction > 0.0)
-                        .then(|| lpips_of(net, &pasted, gt, &cpu))
-                        .transpose()?,
-                ),
-                None => (None, None),
-            };
-            measurements.push(Measurement {
-                triplet: ti,
-                method: o.method.clone(),
-                normals: o.normals,
-                planes: o.planes,
-                sequence: t.sequence.clone(),
-                target: t.target,
-                bin: bin.clone(),
-                kind: kind.into(),
-                psnr: mhi_eval::psnr(&img, gt)?,
-                ssim: mhi_eval::ssim(&img, gt)?,
-                lpips,
-                psnr_covered: mhi_eval::psnr_masked(&img, gt, &covered)?,
-                ssim_covered: mhi_eval::ssim_masked(&img, gt, &covered)?,
-                lpips_covered,
-                covered_fraction,
-                times: o.times,
-                timed: !a.renders.iter().any(|(n, _)| *n == o.method),
-            });
+            measurements.push(protocol::score(
+                ti,
+                t,
+                (o.method.clone(), o.normals, o.planes),
+                &o.image,
+                gt,
+                &covered,
+                (o.times, !a.renders.iter().any(|(n, _)| *n == o.method)),
+                lpips_net.as_ref().map(|_| &lpips as protocol::Scorer<'_>),
+            )?);
             for e in &o.exact {
                 pruning.push(PruneMeasure::new(o, e, &img, gt, &covered)?);
             }
@@ -776,16 +756,6 @@ fn comparison_pairs(cfgs: &[Config]) -> Vec<(Config, Config)> {
 
 /// `img` with every pixel outside `covered` replaced by `truth`'s: the uncovered region then
 /// adds nothing to a whole-image metric such as LPIPS.
-fn with_uncovered_from(img: &Rgb32FImage, truth: &Rgb32FImage, covered: &[bool]) -> Rgb32FImage {
-    let mut o = img.clone();
-    for ((p, t), &c) in o.pixels_mut().zip(truth.pixels()).zip(covered) {
-        if !c {
-            *p = *t;
-        }
-    }
-    o
-}
-
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }

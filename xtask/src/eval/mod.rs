@@ -185,156 +185,11 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
 }
 
 fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
-    if !(a.budget.is_finite() && (0.0..=255.0).contains(&a.budget)) {
-        bail!(
-            "--budget {} must be a number of 8-bit levels in [0, 255] (1 by default)",
-            a.budget
-        );
-    }
-    for (k, b) in a.also_budgets.iter().enumerate() {
-        if !(b.is_finite() && *b > 0.0 && *b <= 255.0) {
-            bail!(
-                "--also-budgets: {b} must be a number of 8-bit levels in (0, 255] (e.g. --also-budgets 2,4,8)"
-            );
-        }
-        if a.also_budgets[..k].contains(b) || (!a.exact && *b == a.budget) {
-            bail!(
-                "--also-budgets: {b} is given twice (--budget {} is always measured unless --exact)",
-                a.budget
-            );
-        }
-    }
-    if a.short_side < 32 {
-        bail!(
-            "--short-side {} is too small: LPIPS and SSIM need at least 32 pixels a side",
-            a.short_side
-        );
-    }
-    if let Some((w, h)) = a.size
-        && (w < 32 || h < 32)
-    {
-        bail!("--size {w}x{h} is too small: LPIPS and SSIM need at least 32 pixels a side");
-    }
-    let ds = Dataset::open_many(&a.data, &a.split, 3)?;
-    let ds = if a.sequences.is_empty() {
-        ds
-    } else {
-        ds.select(&a.sequences, true).context("--sequences")?
-    };
-    for w in &ds.warnings {
-        eprintln!(
-            "warning: {}",
-            mhi_data::sanitize::for_terminal(&w.to_string())
-        );
-    }
-    let index = match &a.index {
-        Some(p) => {
-            let idx = TripletIndex::load(p)?;
-            idx.validate(&ds, p)?;
-            idx
-        }
-        None => crate::common::sample_index(&ds, a.per_sequence, a.seed)?,
-    };
-    if index.triplets.is_empty() {
-        match &a.index {
-            Some(p) => bail!("the index {} holds no triplet", p.display()),
-            None if a.per_sequence == 0 => {
-                bail!("--per-sequence 0 draws no triplet; give at least 1")
-            }
-            None => bail!(
-                "{}: no triplet to evaluate (each sequence needs at least 3 frames)",
-                ds.dir.display()
-            ),
-        }
-    }
-    check_renders(a, &ds, &index)?;
+    check_options(a)?;
+    let (ds, index) = open_triplets(a)?;
     let cpu = Device::flex();
-    let mut models = Vec::new();
-    let mut runs = a.runs.clone();
-    if runs.is_empty() && !a.no_pretrained {
-        let needs_run = [Method::Learned, Method::Soft, Method::Hard, Method::Avg]
-            .iter()
-            .any(|m| a.methods.contains(m));
-        if let Some(p) = crate::models::pretrained().filter(|_| needs_run) {
-            println!(
-                "using the pretrained model {} (--run chooses another, --no-pretrained none)",
-                p.display()
-            );
-            runs.push(p);
-        }
-    }
-    for run in &runs {
-        let model = Model::load(run, cpu.clone())
-            .with_context(|| format!("loading the trained run {}", run.display()))?;
-        models.push(Loaded {
-            run: run.clone(),
-            model,
-        });
-    }
-    let wants = |m: Method| a.methods.contains(&m);
-    let sweep_grid: Vec<(usize, usize)> = if wants(Method::Sweep) {
-        a.sweep_grid
-            .iter()
-            .map(|s| parse_nd(s))
-            .collect::<anyhow::Result<_>>()?
-    } else {
-        Vec::new()
-    };
-    let synthetic = ds
-        .sequences
-        .iter()
-        .all(|s| s.dir().join("scene.json").is_file());
-    let oracle_grid: Vec<(usize, usize)> = if wants(Method::Oracle) && synthetic {
-        a.oracle_grid
-            .iter()
-            .map(|s| parse_nd(s))
-            .collect::<anyhow::Result<_>>()?
-    } else {
-        Vec::new()
-    };
-    let sweep_config = SweepConfig {
-        window_radius: a.sweep_window,
-        temperature: a.sweep_temperature,
-        invalid_cost: a.sweep_invalid_cost,
-    };
-    // The size of each sequence, checked against every model before any work.
-    let size_of = |seq: &mhi_data::Sequence| -> anyhow::Result<(u32, u32)> {
-        Ok(match a.size {
-            Some(s) => s,
-            None => size_for(mhi_data::check_same_size(&[&seq.frames[0]])?, a.short_side),
-        })
-    };
-    let mut sizes = std::collections::BTreeMap::new();
-    for seq in &ds.sequences {
-        let size = size_of(seq)?;
-        for m in &models {
-            m.model.check_size(size.0, size.1).with_context(|| {
-                format!(
-                    "evaluation size of sequence {} (--size / --short-side) for the run {}",
-                    seq.name,
-                    m.run.display()
-                )
-            })?;
-        }
-        let layers = sweep_grid
-            .iter()
-            .chain(&oracle_grid)
-            .map(|(n, d)| n * d)
-            .chain(
-                models
-                    .iter()
-                    .map(|m| m.model.normals().len() * m.model.depths().len() * 8),
-            )
-            .max()
-            .unwrap_or(1);
-        crate::common::check_memory(
-            &format!("evaluation size of sequence {}", seq.name),
-            size.0,
-            size.1,
-            layers,
-        )?;
-        sizes.insert(seq.name.clone(), size);
-    }
+    let models = load_models(a, &cpu)?;
+    let (sweep_grid, oracle_grid, sweep_config, sizes) = plan_grids_and_sizes(a, &ds, &models)?;
     let weights_dir = crate::common::cache_dir(a.cache.as_deref()).join("weights");
     let lpips_net = match Backbone::load(&weights_dir, Net::Alex, &cpu) {
         Ok(b) => Some(b),
@@ -542,6 +397,213 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
     )?;
     mhi_data::write_atomic(&a.out.join("report.csv"), report::csv(&rows).as_bytes())?;
 
+    write_figures_and_markdown(
+        a,
+        &meta,
+        &rows,
+        &comparisons,
+        &prune_rows,
+        &models,
+        &sample_md,
+        &sizes_used,
+    )?;
+    print_summary(&rows, &comparisons);
+    Ok(())
+}
+
+/// Refuse options that cannot be measured honestly, before any work.
+fn check_options(a: &EvalArgs) -> anyhow::Result<()> {
+    if !(a.budget.is_finite() && (0.0..=255.0).contains(&a.budget)) {
+        bail!(
+            "--budget {} must be a number of 8-bit levels in [0, 255] (1 by default)",
+            a.budget
+        );
+    }
+    for (k, b) in a.also_budgets.iter().enumerate() {
+        if !(b.is_finite() && *b > 0.0 && *b <= 255.0) {
+            bail!(
+                "--also-budgets: {b} must be a number of 8-bit levels in (0, 255] (e.g. --also-budgets 2,4,8)"
+            );
+        }
+        if a.also_budgets[..k].contains(b) || (!a.exact && *b == a.budget) {
+            bail!(
+                "--also-budgets: {b} is given twice (--budget {} is always measured unless --exact)",
+                a.budget
+            );
+        }
+    }
+    if a.short_side < 32 {
+        bail!(
+            "--short-side {} is too small: LPIPS and SSIM need at least 32 pixels a side",
+            a.short_side
+        );
+    }
+    if let Some((w, h)) = a.size
+        && (w < 32 || h < 32)
+    {
+        bail!("--size {w}x{h} is too small: LPIPS and SSIM need at least 32 pixels a side");
+    }
+    Ok(())
+}
+
+/// The dataset (its --sequences) and the triplets to score: --index, else drawn; --renders checked
+/// against them.
+fn open_triplets(a: &EvalArgs) -> anyhow::Result<(Dataset, TripletIndex)> {
+    let ds = Dataset::open_many(&a.data, &a.split, 3)?;
+    let ds = if a.sequences.is_empty() {
+        ds
+    } else {
+        ds.select(&a.sequences, true).context("--sequences")?
+    };
+    for w in &ds.warnings {
+        eprintln!(
+            "warning: {}",
+            mhi_data::sanitize::for_terminal(&w.to_string())
+        );
+    }
+    let index = match &a.index {
+        Some(p) => {
+            let idx = TripletIndex::load(p)?;
+            idx.validate(&ds, p)?;
+            idx
+        }
+        None => crate::common::sample_index(&ds, a.per_sequence, a.seed)?,
+    };
+    if index.triplets.is_empty() {
+        match &a.index {
+            Some(p) => bail!("the index {} holds no triplet", p.display()),
+            None if a.per_sequence == 0 => {
+                bail!("--per-sequence 0 draws no triplet; give at least 1")
+            }
+            None => bail!(
+                "{}: no triplet to evaluate (each sequence needs at least 3 frames)",
+                ds.dir.display()
+            ),
+        }
+    }
+    check_renders(a, &ds, &index)?;
+    Ok((ds, index))
+}
+
+/// The trained runs to evaluate: --run, else the pretrained model when a method needs one.
+fn load_models(a: &EvalArgs, cpu: &Device) -> anyhow::Result<Vec<Loaded>> {
+    let mut models = Vec::new();
+    let mut runs = a.runs.clone();
+    if runs.is_empty() && !a.no_pretrained {
+        let needs_run = [Method::Learned, Method::Soft, Method::Hard, Method::Avg]
+            .iter()
+            .any(|m| a.methods.contains(m));
+        if let Some(p) = crate::models::pretrained().filter(|_| needs_run) {
+            println!(
+                "using the pretrained model {} (--run chooses another, --no-pretrained none)",
+                p.display()
+            );
+            runs.push(p);
+        }
+    }
+    for run in &runs {
+        let model = Model::load(run, cpu.clone())
+            .with_context(|| format!("loading the trained run {}", run.display()))?;
+        models.push(Loaded {
+            run: run.clone(),
+            model,
+        });
+    }
+    Ok(models)
+}
+
+/// The sweep's and the oracle's grids, the sweep's settings, and each sequence's evaluation size,
+/// checked against every model and the memory before any work.
+#[allow(clippy::type_complexity)]
+fn plan_grids_and_sizes(
+    a: &EvalArgs,
+    ds: &Dataset,
+    models: &[Loaded],
+) -> anyhow::Result<(
+    Vec<(usize, usize)>,
+    Vec<(usize, usize)>,
+    SweepConfig,
+    std::collections::BTreeMap<String, (u32, u32)>,
+)> {
+    let wants = |m: Method| a.methods.contains(&m);
+    let sweep_grid: Vec<(usize, usize)> = if wants(Method::Sweep) {
+        a.sweep_grid
+            .iter()
+            .map(|s| parse_nd(s))
+            .collect::<anyhow::Result<_>>()?
+    } else {
+        Vec::new()
+    };
+    let synthetic = ds
+        .sequences
+        .iter()
+        .all(|s| s.dir().join("scene.json").is_file());
+    let oracle_grid: Vec<(usize, usize)> = if wants(Method::Oracle) && synthetic {
+        a.oracle_grid
+            .iter()
+            .map(|s| parse_nd(s))
+            .collect::<anyhow::Result<_>>()?
+    } else {
+        Vec::new()
+    };
+    let sweep_config = SweepConfig {
+        window_radius: a.sweep_window,
+        temperature: a.sweep_temperature,
+        invalid_cost: a.sweep_invalid_cost,
+    };
+    // The size of each sequence, checked against every model before any work.
+    let size_of = |seq: &mhi_data::Sequence| -> anyhow::Result<(u32, u32)> {
+        Ok(match a.size {
+            Some(s) => s,
+            None => size_for(mhi_data::check_same_size(&[&seq.frames[0]])?, a.short_side),
+        })
+    };
+    let mut sizes = std::collections::BTreeMap::new();
+    for seq in &ds.sequences {
+        let size = size_of(seq)?;
+        for m in models {
+            m.model.check_size(size.0, size.1).with_context(|| {
+                format!(
+                    "evaluation size of sequence {} (--size / --short-side) for the run {}",
+                    seq.name,
+                    m.run.display()
+                )
+            })?;
+        }
+        let layers = sweep_grid
+            .iter()
+            .chain(&oracle_grid)
+            .map(|(n, d)| n * d)
+            .chain(
+                models
+                    .iter()
+                    .map(|m| m.model.normals().len() * m.model.depths().len() * 8),
+            )
+            .max()
+            .unwrap_or(1);
+        crate::common::check_memory(
+            &format!("evaluation size of sequence {}", seq.name),
+            size.0,
+            size.1,
+            layers,
+        )?;
+        sizes.insert(seq.name.clone(), size);
+    }
+    Ok((sweep_grid, oracle_grid, sweep_config, sizes))
+}
+
+/// The report's figures (error against time, the budget trade-off, training curves) and report.md.
+#[allow(clippy::too_many_arguments)]
+fn write_figures_and_markdown(
+    a: &EvalArgs,
+    meta: &Meta,
+    rows: &[Row],
+    comparisons: &[Comparison],
+    prune_rows: &[pruning::PruneRow],
+    models: &[Loaded],
+    sample_md: &str,
+    sizes_used: &[(u32, u32)],
+) -> anyhow::Result<()> {
     // Figures, from the rows.
     let mut points: Vec<TimePoint> = rows
         .iter()
@@ -582,18 +644,18 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
         &points,
         &format!(
             "covered PSNR against time per view ({}, {} triplets)",
-            size_label(&sizes_used),
+            size_label(sizes_used),
             meta.triplets
         ),
     )?;
     if !a.also_budgets.is_empty() {
         budget_tradeoff(
             &a.out.join("budget_tradeoff"),
-            &prune_rows,
+            prune_rows,
             &a.measured_budgets(),
         )?;
     }
-    let curves = training_curves(&models)?;
+    let curves = training_curves(models)?;
     let has_curves = !curves.is_empty();
     if has_curves {
         mhi_eval::plot::training_curve(
@@ -602,18 +664,9 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
             "validation PSNR during training",
         )?;
     }
-    let md = markdown(
-        &meta,
-        &rows,
-        &comparisons,
-        has_curves,
-        &sample_md,
-        a,
-        &models,
-    );
-    let md = md + &prune_markdown(&prune_rows, a);
+    let md = markdown(meta, rows, comparisons, has_curves, sample_md, a, models);
+    let md = md + &prune_markdown(prune_rows, a);
     mhi_data::write_atomic(&a.out.join("report.md"), md.as_bytes())?;
-    print_summary(&rows, &comparisons);
     Ok(())
 }
 

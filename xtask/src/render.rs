@@ -234,8 +234,9 @@ fn working_size(a: &RenderArgs, learned: Option<&Model>) -> anyhow::Result<(u32,
     Ok(size)
 }
 
-fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result<()> {
-    let file = match &a.cameras {
+/// The photos' cameras (and any listed views): --cameras, else estimated from the photos.
+fn camera_file(a: &RenderArgs) -> anyhow::Result<CameraFile> {
+    Ok(match &a.cameras {
         Some(p) => CameraFile::read(p)?,
         None => {
             if (a.ref_row, a.src_row) != (1, 2) {
@@ -245,7 +246,70 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
             }
             crate::pose::estimate(&a.reference, &a.src, &a.intrinsics)?.1
         }
+    })
+}
+
+/// The camera file's rows other than the photos', one camera at a time: a camera file of any
+/// length costs one view.
+fn listed_cameras<'a>(
+    a: &'a RenderArgs,
+    file: &'a CameraFile,
+    (w, h): (u32, u32),
+) -> impl Iterator<Item = anyhow::Result<(usize, Camera)>> + 'a {
+    file.rows
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| *k + 1 != a.ref_row && *k + 1 != a.src_row)
+        .map(move |(k, r)| {
+            let cam = r
+                .camera(w, h)
+                .with_context(|| format!("camera row {}", k + 1))?;
+            Ok((k + 1, cam))
+        })
+}
+
+/// The scene plan over every view to render (listed and path cameras), and plan.json's bytes.
+fn plan_views(
+    a: &RenderArgs,
+    mhi: &mhi_render::Mhi,
+    learned_blend: bool,
+    reference: &Camera,
+    cams: impl Iterator<Item = anyhow::Result<Camera>>,
+    count: usize,
+    prune: Prune,
+) -> anyhow::Result<(mhi_render::plan::ScenePlan, Vec<u8>)> {
+    // What the views need: Soft weights for the sweep; a learned blend comes after the
+    // multi-normal images, so no normal is left out for it (Avg weights say so).
+    let heuristic = if learned_blend && mhi.n() > 1 {
+        BlendHeuristic::Avg
+    } else {
+        BlendHeuristic::Soft
     };
+    let mut seen = mhi_render::plan::ViewsSeen::new(mhi, prune);
+    let pb = crate::progress::bar(count as u64, "plan");
+    for cam in cams {
+        let cam = cam?;
+        seen.add(
+            &cam,
+            &heuristic_weights_for(mhi.normals(), reference, &cam, heuristic),
+        )?;
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    let plan = seen.finish(mhi)?;
+    let plan_json = serde_json::to_vec_pretty(&serde_json::json!({
+        "exact": a.exact,
+        "blend": if heuristic == BlendHeuristic::Avg { "learned (no normal left out: its weights come after the multi-normal images)" } else { "Soft" },
+        "plan": plan,
+    }))?;
+    if a.explain {
+        println!("{}", plan.explain());
+    }
+    Ok((plan, plan_json))
+}
+
+fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result<()> {
+    let file = camera_file(a)?;
     if let Some(w) = &file.rotation_warning {
         eprintln!("warning: {}", for_terminal(w));
     }
@@ -299,19 +363,7 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
         },
         t0.elapsed().as_secs_f64() * 1e3
     );
-    // The listed views, one camera at a time: a camera file of any length costs one view.
-    let listed = || {
-        file.rows
-            .iter()
-            .enumerate()
-            .filter(|(k, _)| *k + 1 != a.ref_row && *k + 1 != a.src_row)
-            .map(|(k, r)| {
-                let cam = r
-                    .camera(size.0, size.1)
-                    .with_context(|| format!("camera row {}", k + 1))?;
-                Ok((k + 1, cam))
-            })
-    };
+    let listed = || listed_cameras(a, &file, size);
     let listed_count = file.rows.len() - 2;
     let baseline = (rf.camera.center_in_world() - sf.camera.center_in_world()).length();
     let path = if views_too {
@@ -336,35 +388,17 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
     } else {
         Prune::with_budget(a.budget / 255.0)
     };
-    // What the views need: Soft weights for the sweep; a learned blend comes after the
-    // multi-normal images, so no normal is left out for it (Avg weights say so).
-    let heuristic = match model {
-        Some(_) if mhi.n() > 1 => BlendHeuristic::Avg,
-        _ => BlendHeuristic::Soft,
-    };
-    let mut seen = mhi_render::plan::ViewsSeen::new(&mhi, prune);
-    let pb = crate::progress::bar((listed_count + path_cams.len()) as u64, "plan");
-    for cam in listed()
-        .map(|r| r.map(|(_, c)| c))
-        .chain(path_cams.iter().cloned().map(Ok))
-    {
-        let cam = cam?;
-        seen.add(
-            &cam,
-            &heuristic_weights_for(mhi.normals(), &rf.camera, &cam, heuristic),
-        )?;
-        pb.inc(1);
-    }
-    pb.finish_and_clear();
-    let plan = seen.finish(&mhi)?;
-    let plan_json = serde_json::to_vec_pretty(&serde_json::json!({
-        "exact": a.exact,
-        "blend": if heuristic == BlendHeuristic::Avg { "learned (no normal left out: its weights come after the multi-normal images)" } else { "Soft" },
-        "plan": plan,
-    }))?;
-    if a.explain {
-        println!("{}", plan.explain());
-    }
+    let (plan, plan_json) = plan_views(
+        a,
+        &mhi,
+        model.is_some(),
+        &rf.camera,
+        listed()
+            .map(|r| r.map(|(_, c)| c))
+            .chain(path_cams.iter().cloned().map(Ok)),
+        listed_count + path_cams.len(),
+        prune,
+    )?;
     let mut worst_bound = 0.0_f32;
     let mut video = None;
     if let Some(out) = &views_out {
@@ -386,31 +420,17 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
         }
     }
     if let Some(out) = &viewer_out {
-        let inputs = [
-            ("reference photo", &rf.camera),
-            ("source photo", &sf.camera),
-        ];
         let cams: Vec<(usize, Camera)> = listed().collect::<anyhow::Result<_>>()?;
-        let names: Vec<_> = cams
-            .iter()
-            .map(|(row, c)| (format!("camera row {row}"), c))
-            .collect();
-        let source = if model.is_some() {
-            "trained stage 1 (the viewer blends with Soft: the blending network does not run in the browser)"
-        } else {
-            "training-free plane sweep"
-        };
-        if !views_too {
-            mhi_data::write_atomic(&out.path().join("plan.json"), &plan_json)?;
-        }
-        crate::export::write_viewer(
+        let plan_json = (!views_too).then_some(&plan_json[..]);
+        write_viewer_out(
             out.path(),
             &mhi,
             &plan,
-            source,
-            &inputs,
-            &names,
-            video.as_ref().map(|v| &v.bytes[..]),
+            model.is_some(),
+            (&rf.camera, &sf.camera),
+            &cams,
+            plan_json,
+            video.as_ref(),
         )?;
     }
     if let Some(out) = viewer_out {
@@ -424,32 +444,81 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
     }
     if let Some(out) = views_out {
         let dir = out.commit()?;
-        let video_at = match (&video, &a.video) {
-            (None, _) => None,
-            (Some(v), Some(file)) => {
-                mhi_data::write_atomic(file, &v.bytes)?;
-                Some(file.clone())
-            }
-            (Some(_), None) => Some(dir.join(VIDEO_FILE)),
-        };
-        println!(
-            "{listed_count} view(s){} in {}; {}",
-            match &video_at {
-                Some(f) => format!(" and the path's video {}", f.display()),
-                None => String::new(),
-            },
-            dir.display(),
-            if a.exact {
-                "rendered exactly (--exact)".to_string()
-            } else {
-                format!(
-                    "no pixel moved by more than {:.2} 8-bit levels from what was left out (budget {}; --exact renders everything, --explain says what was left out)",
-                    worst_bound * 255.0,
-                    a.budget
-                )
-            }
-        );
+        report_views(a, &dir, listed_count, video.as_ref(), worst_bound)?;
     }
+    Ok(())
+}
+
+/// The viewer folder: the MHI's layers, the photos' and listed cameras, the video when there is
+/// one, and plan.json when no views folder holds it.
+#[allow(clippy::too_many_arguments)]
+fn write_viewer_out(
+    dir: &Path,
+    mhi: &mhi_render::Mhi,
+    plan: &mhi_render::plan::ScenePlan,
+    learned: bool,
+    (reference, source): (&Camera, &Camera),
+    cams: &[(usize, Camera)],
+    plan_json: Option<&[u8]>,
+    video: Option<&mhi_video::Video>,
+) -> anyhow::Result<()> {
+    let inputs = [("reference photo", reference), ("source photo", source)];
+    let names: Vec<_> = cams
+        .iter()
+        .map(|(row, c)| (format!("camera row {row}"), c))
+        .collect();
+    let source = if learned {
+        "trained stage 1 (the viewer blends with Soft: the blending network does not run in the browser)"
+    } else {
+        "training-free plane sweep"
+    };
+    if let Some(bytes) = plan_json {
+        mhi_data::write_atomic(&dir.join("plan.json"), bytes)?;
+    }
+    crate::export::write_viewer(
+        dir,
+        mhi,
+        plan,
+        source,
+        &inputs,
+        &names,
+        video.map(|v| &v.bytes[..]),
+    )
+}
+
+/// Put a --video file in place and say what was written where, with the bound the render kept.
+fn report_views(
+    a: &RenderArgs,
+    dir: &Path,
+    listed_count: usize,
+    video: Option<&mhi_video::Video>,
+    worst_bound: f32,
+) -> anyhow::Result<()> {
+    let video_at = match (video, &a.video) {
+        (None, _) => None,
+        (Some(v), Some(file)) => {
+            mhi_data::write_atomic(file, &v.bytes)?;
+            Some(file.clone())
+        }
+        (Some(_), None) => Some(dir.join(VIDEO_FILE)),
+    };
+    println!(
+        "{listed_count} view(s){} in {}; {}",
+        match &video_at {
+            Some(f) => format!(" and the path's video {}", f.display()),
+            None => String::new(),
+        },
+        dir.display(),
+        if a.exact {
+            "rendered exactly (--exact)".to_string()
+        } else {
+            format!(
+                "no pixel moved by more than {:.2} 8-bit levels from what was left out (budget {}; --exact renders everything, --explain says what was left out)",
+                worst_bound * 255.0,
+                a.budget
+            )
+        }
+    );
     Ok(())
 }
 

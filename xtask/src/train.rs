@@ -52,6 +52,169 @@ pub fn sources(a: &TrainArgs) -> anyhow::Result<Vec<DataSource>> {
     Ok(out)
 }
 
+/// The configuration of a new run from the options (each refused combination named).
+fn new_config(a: &TrainArgs, sources: Vec<DataSource>) -> anyhow::Result<TrainConfig> {
+    if let Some(at) = a.lr_drop_at
+        && at >= a.phase1_steps
+    {
+        bail!(
+            "--lr-drop-at {at} must be below --phase1-steps {}: the learning rate would never drop",
+            a.phase1_steps
+        );
+    }
+    let mut c = TrainConfig::for_normals(a.normals);
+    c.stage1.unet.width = a.width;
+    c.stage1.share_weights = !a.separate_weights;
+    c.stage1.unet.halve_planes = a.stage1_halve_planes;
+    c.stage1.unet.norm_groups = a.stage1_norm_groups;
+    c.stage1.unet.colour_head = a.stage1_colour;
+    if a.stage1_prototype_layout {
+        c.stage1.unet.prototype_layout = true;
+        c.stage1.unet.dilations.clear();
+    }
+    c.stage1.scale = a.stage1_scale as usize;
+    c.blend.width = a.blend_width;
+    c.width = a.size.0;
+    c.height = a.size.1;
+    c.planes = a.planes;
+    c.phase1_steps = a.phase1_steps;
+    c.phase2_steps = a.phase2_steps;
+    c.lr = a.lr;
+    c.lr_drop_at = a.lr_drop_at;
+    c.lr_drop_factor = a.lr_drop_factor;
+    if a.prior != PriorArg::Sweep
+        && (a.prior_window_radius.is_some()
+            || a.prior_temperature.is_some()
+            || a.prior_invalid_cost.is_some()
+            || a.prior_clamp.is_some())
+    {
+        bail!(
+            "--prior-window-radius, --prior-temperature, --prior-invalid-cost and --prior-clamp shape the sweep prior: they need --prior sweep"
+        );
+    }
+    if a.stage1_colour && a.prior != PriorArg::Sweep {
+        bail!(
+            "--stage1-colour mixes each plane's colour by a residual head on the sweep prior: it needs --prior sweep"
+        );
+    }
+    c.prior_clamp = a.prior_clamp;
+    c.prior_window_radius = a.prior_window_radius;
+    c.prior_temperature = a.prior_temperature;
+    c.prior_invalid_cost = a.prior_invalid_cost;
+    c.optimizer = c.optimizer.clone().with_epsilon(a.adam_epsilon);
+    if a.no_grad_clip {
+        c.optimizer = c.optimizer.clone().with_grad_clipping(None);
+    }
+    c.seed = a.seed;
+    c.checkpoint_every = a.checkpoint_every;
+    c.val_samples = a.val_samples;
+    c.data = sources;
+    c.extrapolation_share = a.extrapolation_share;
+    c.triplet_sampling = match a.triplets {
+        TripletsArg::Clips => mhi_data::TripletSampling::Clips,
+        TripletsArg::Neighbours => {
+            if a.extrapolation_share != mhi_data::PAPER_EXTRAPOLATION_SHARE {
+                bail!(
+                    "--extrapolation-share {} has no effect with --triplets neighbours: a neighbour triplet's kind follows from where its views lie",
+                    a.extrapolation_share
+                );
+            }
+            mhi_data::TripletSampling::Neighbours
+        }
+        TripletsArg::ByCapture => mhi_data::TripletSampling::ByCapture,
+    };
+    c.fit = match a.fit {
+        FitArg::Stretch => mhi_data::Fit::Stretch,
+        FitArg::Crop => mhi_data::Fit::CenterCrop,
+    };
+    if a.prior == PriorArg::Sweep {
+        c = c.with_sweep_prior();
+    }
+    Ok(c)
+}
+
+/// The loss of a new run: --loss, with L1 + SSIM when the VGG16 weights are missing (said).
+fn train_loss(
+    a: &TrainArgs,
+    weights: &std::path::Path,
+    device: &burn::tensor::Device,
+) -> anyhow::Result<TrainLoss> {
+    Ok(match a.loss {
+        LossArg::Photometric => TrainLoss::Photometric,
+        LossArg::L1 => TrainLoss::L1,
+        want => match TrainLoss::from_weights(Some(weights), a.perceptual_weight, device) {
+            (l @ TrainLoss::Perceptual { .. }, _) => l,
+            (l, why) => {
+                let why = why.unwrap_or_default();
+                if want == LossArg::Perceptual {
+                    bail!("--loss perceptual: {why}");
+                }
+                eprintln!(
+                    "note: VGG16 weights unavailable ({why}); training with L1 + SSIM instead (recorded in config.json). `cargo xtask weights` fetches them."
+                );
+                l
+            }
+        },
+    })
+}
+
+/// Print what the run reached (and where it started) and write its summary.json.
+fn report_run(
+    a: &TrainArgs,
+    trainer: &Trainer,
+    scores: Option<&mhi_net::EvalScores>,
+    untrained: Option<&mhi_net::EvalScores>,
+) -> anyhow::Result<()> {
+    let cfg = trainer.config();
+    println!(
+        "trained {} steps in {:.0} s ({} normals, {} planes, {}x{}, loss: {})",
+        cfg.total_steps(),
+        trainer.elapsed_s(),
+        cfg.stage1.normals,
+        cfg.planes,
+        cfg.width,
+        cfg.height,
+        cfg.loss
+    );
+    let row = |label: &str, psnr: f64, lpips: Option<f64>| {
+        let lpips = lpips.map_or("-".to_string(), |x| format!("{x:.4}"));
+        println!("  {label:<30} {psnr:>8.2} {lpips:>8}");
+    };
+    if let Some(scores) = scores {
+        println!(
+            "validation scores over {} samples of {} (PSNR dB higher is better, LPIPS-alex lower is better):",
+            a.eval_samples,
+            trainer.validation_source()
+        );
+        println!("  {:<30} {:>8} {:>8}", "", "PSNR", "LPIPS");
+        row("learned blend", scores.psnr_learned, scores.lpips_learned);
+        row(
+            "Soft heuristic, same stage 1",
+            scores.psnr_soft,
+            scores.lpips_soft,
+        );
+        if let Some(u) = untrained {
+            row("untrained model (learned)", u.psnr_learned, u.lpips_learned);
+            row("untrained model (Soft)", u.psnr_soft, u.lpips_soft);
+        }
+    } else {
+        println!(
+            "no closing evaluation (--eval-samples 0); the validation curve is in {}",
+            mhi_net::RunDir::new(&a.run).val_path().display()
+        );
+    }
+    let summary = serde_json::json!({
+        "steps": cfg.total_steps(), "elapsed_s": trainer.elapsed_s(), "normals": cfg.stage1.normals, "planes": cfg.planes,
+        "eval_samples": a.eval_samples, "trained": scores, "untrained": untrained, "loss": cfg.loss,
+        "validation": trainer.validation_source(), "data": cfg.data,
+    });
+    mhi_data::write_atomic(
+        &mhi_net::RunDir::new(&a.run).summary_path(),
+        &serde_json::to_vec_pretty(&summary)?,
+    )?;
+    Ok(())
+}
+
 /// `cargo xtask train`.
 pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
     if a.data.len() == 1 && a.data[0] == std::path::Path::new("data/synth") {
@@ -78,99 +241,8 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
                 a.run.display()
             );
         }
-        if let Some(at) = a.lr_drop_at
-            && at >= a.phase1_steps
-        {
-            bail!(
-                "--lr-drop-at {at} must be below --phase1-steps {}: the learning rate would never drop",
-                a.phase1_steps
-            );
-        }
-        let mut c = TrainConfig::for_normals(a.normals);
-        c.stage1.unet.width = a.width;
-        c.stage1.share_weights = !a.separate_weights;
-        c.stage1.unet.halve_planes = a.stage1_halve_planes;
-        c.stage1.unet.norm_groups = a.stage1_norm_groups;
-        c.stage1.unet.colour_head = a.stage1_colour;
-        if a.stage1_prototype_layout {
-            c.stage1.unet.prototype_layout = true;
-            c.stage1.unet.dilations.clear();
-        }
-        c.stage1.scale = a.stage1_scale as usize;
-        c.blend.width = a.blend_width;
-        c.width = a.size.0;
-        c.height = a.size.1;
-        c.planes = a.planes;
-        c.phase1_steps = a.phase1_steps;
-        c.phase2_steps = a.phase2_steps;
-        c.lr = a.lr;
-        c.lr_drop_at = a.lr_drop_at;
-        c.lr_drop_factor = a.lr_drop_factor;
-        if a.prior != PriorArg::Sweep
-            && (a.prior_window_radius.is_some()
-                || a.prior_temperature.is_some()
-                || a.prior_invalid_cost.is_some()
-                || a.prior_clamp.is_some())
-        {
-            bail!(
-                "--prior-window-radius, --prior-temperature, --prior-invalid-cost and --prior-clamp shape the sweep prior: they need --prior sweep"
-            );
-        }
-        if a.stage1_colour && a.prior != PriorArg::Sweep {
-            bail!(
-                "--stage1-colour mixes each plane's colour by a residual head on the sweep prior: it needs --prior sweep"
-            );
-        }
-        c.prior_clamp = a.prior_clamp;
-        c.prior_window_radius = a.prior_window_radius;
-        c.prior_temperature = a.prior_temperature;
-        c.prior_invalid_cost = a.prior_invalid_cost;
-        c.optimizer = c.optimizer.clone().with_epsilon(a.adam_epsilon);
-        if a.no_grad_clip {
-            c.optimizer = c.optimizer.clone().with_grad_clipping(None);
-        }
-        c.seed = a.seed;
-        c.checkpoint_every = a.checkpoint_every;
-        c.val_samples = a.val_samples;
-        c.data = sources;
-        c.extrapolation_share = a.extrapolation_share;
-        c.triplet_sampling = match a.triplets {
-            TripletsArg::Clips => mhi_data::TripletSampling::Clips,
-            TripletsArg::Neighbours => {
-                if a.extrapolation_share != mhi_data::PAPER_EXTRAPOLATION_SHARE {
-                    bail!(
-                        "--extrapolation-share {} has no effect with --triplets neighbours: a neighbour triplet's kind follows from where its views lie",
-                        a.extrapolation_share
-                    );
-                }
-                mhi_data::TripletSampling::Neighbours
-            }
-            TripletsArg::ByCapture => mhi_data::TripletSampling::ByCapture,
-        };
-        c.fit = match a.fit {
-            FitArg::Stretch => mhi_data::Fit::Stretch,
-            FitArg::Crop => mhi_data::Fit::CenterCrop,
-        };
-        if a.prior == PriorArg::Sweep {
-            c = c.with_sweep_prior();
-        }
-        let loss = match a.loss {
-            LossArg::Photometric => TrainLoss::Photometric,
-            LossArg::L1 => TrainLoss::L1,
-            want => match TrainLoss::from_weights(Some(&weights), a.perceptual_weight, &device) {
-                (l @ TrainLoss::Perceptual { .. }, _) => l,
-                (l, why) => {
-                    let why = why.unwrap_or_default();
-                    if want == LossArg::Perceptual {
-                        bail!("--loss perceptual: {why}");
-                    }
-                    eprintln!(
-                        "note: VGG16 weights unavailable ({why}); training with L1 + SSIM instead (recorded in config.json). `cargo xtask weights` fetches them."
-                    );
-                    l
-                }
-            },
-        };
+        let c = new_config(a, sources)?;
+        let loss = train_loss(a, &weights, &device)?;
         Trainer::new(c, &a.run, &a.data[0], loss, device)
             .with_context(|| format!("starting a training run in --run {}", a.run.display()))?
     };
@@ -220,52 +292,7 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
     } else {
         None
     };
-    println!(
-        "trained {} steps in {:.0} s ({} normals, {} planes, {}x{}, loss: {})",
-        cfg.total_steps(),
-        trainer.elapsed_s(),
-        cfg.stage1.normals,
-        cfg.planes,
-        cfg.width,
-        cfg.height,
-        cfg.loss
-    );
-    let row = |label: &str, psnr: f64, lpips: Option<f64>| {
-        let lpips = lpips.map_or("-".to_string(), |x| format!("{x:.4}"));
-        println!("  {label:<30} {psnr:>8.2} {lpips:>8}");
-    };
-    if let Some(scores) = &scores {
-        println!(
-            "validation scores over {} samples of {} (PSNR dB higher is better, LPIPS-alex lower is better):",
-            a.eval_samples,
-            trainer.validation_source()
-        );
-        println!("  {:<30} {:>8} {:>8}", "", "PSNR", "LPIPS");
-        row("learned blend", scores.psnr_learned, scores.lpips_learned);
-        row(
-            "Soft heuristic, same stage 1",
-            scores.psnr_soft,
-            scores.lpips_soft,
-        );
-        if let Some(u) = &untrained {
-            row("untrained model (learned)", u.psnr_learned, u.lpips_learned);
-            row("untrained model (Soft)", u.psnr_soft, u.lpips_soft);
-        }
-    } else {
-        println!(
-            "no closing evaluation (--eval-samples 0); the validation curve is in {}",
-            mhi_net::RunDir::new(&a.run).val_path().display()
-        );
-    }
-    let summary = serde_json::json!({
-        "steps": cfg.total_steps(), "elapsed_s": trainer.elapsed_s(), "normals": cfg.stage1.normals, "planes": cfg.planes,
-        "eval_samples": a.eval_samples, "trained": scores, "untrained": untrained, "loss": cfg.loss,
-        "validation": trainer.validation_source(), "data": cfg.data,
-    });
-    mhi_data::write_atomic(
-        &mhi_net::RunDir::new(&a.run).summary_path(),
-        &serde_json::to_vec_pretty(&summary)?,
-    )?;
+    report_run(a, &trainer, scores.as_ref(), untrained.as_ref())?;
     println!("run: {}", a.run.display());
     Ok(())
 }

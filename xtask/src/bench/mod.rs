@@ -400,6 +400,152 @@ fn read_bandwidth() -> f64 {
     (v.len() * 4) as f64 / best
 }
 
+/// `bench --train-step`: the phase-1 step, beside the PyTorch twin in alternating rounds with
+/// --peer.
+fn train_step_bench(a: &BenchArgs) -> anyhow::Result<()> {
+    let weights = crate::common::cache_dir(a.cache.as_deref()).join("weights");
+    let Some(peer) = &a.peer else {
+        let v = step::train_step(&a.data, &weights, a.runs)?;
+        return write_json(a, &v);
+    };
+    if a.rounds == 0 {
+        bail!("--rounds 0: at least one round of this step and the peer's is needed for a ratio");
+    }
+    // Rounds of our step then the peer's, alternating (as the render's): a swing of the
+    // shared machine's speed falls on both sides of a round.
+    let mut rounds = Vec::with_capacity(a.rounds);
+    let mut v = serde_json::Value::Null;
+    for r in 0..a.rounds {
+        println!("\n== round {}/{} ==", r + 1, a.rounds);
+        v = step::train_step(&a.data, &weights, a.runs)?;
+        let torch = step::peer_train_step(&a.python, peer, a.threads, a.runs, &v)?;
+        let ratio = |key: &str| {
+            torch["ratio_burn_over_torch"][key]
+                .as_f64()
+                .unwrap_or(f64::NAN)
+        };
+        rounds.push([ratio("step"), ratio("stage1_inference")]);
+        v["peer"] = torch;
+    }
+    println!(
+        "\nburn / PyTorch over {} alternating rounds (median; distribution-free interval of the median):",
+        a.rounds
+    );
+    let mut summary = serde_json::Map::new();
+    for (part, (key, label)) in [
+        ("step", "phase-1 step (stage 1 + warp + loss, fwd+bwd)"),
+        ("stage1_inference", "stage 1 inference"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let ratios: Vec<f64> = rounds.iter().map(|r| r[part]).collect();
+        let (ci, coverage) = mhi_eval::stats::median_interval(&ratios, 0.95)
+            .context("the peer or this step gave a non-finite time")?;
+        let m = median(ratios.clone());
+        println!(
+            "  {label:<48} {m:.2}x ({:.0} % interval {:.2}–{:.2}x; rounds {})",
+            100.0 * coverage,
+            ci[0],
+            ci[1],
+            ratios
+                .iter()
+                .map(|r| format!("{r:.2}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        summary.insert(
+            key.into(),
+            serde_json::json!({ "median": m, "interval": ci, "coverage": coverage, "rounds": ratios }),
+        );
+    }
+    v["ratio_rounds"] = serde_json::Value::Object(summary);
+    write_json(a, &v)
+}
+
+/// The peer's median time, the median ratio, the rounds (ours, the peer's) and the ratio's
+/// interval.
+type PeerRounds = (f64, f64, Vec<(f64, f64)>, serde_json::Value);
+
+/// Alternating rounds of this renderer (`scene`'s MHI, target and options) and the PyTorch peer
+/// in one colour layout: the peer's median time, the median ratio, the rounds and the ratio's
+/// interval.
+fn peer_rounds(
+    a: &BenchArgs,
+    peer: &std::path::Path,
+    pool: &rayon::ThreadPool,
+    (m, target, soft): (&mhi_render::Mhi, &mhi_geom::Camera, &RenderOptions<'_>),
+    shared: bool,
+    label: &str,
+) -> anyhow::Result<PeerRounds> {
+    let mut rounds = Vec::with_capacity(a.rounds);
+    let mut version = String::new();
+    for r in 0..a.rounds {
+        let ours = pool.install(|| {
+            median_ms(a.runs, || {
+                std::hint::black_box(render(m, target, soft).expect("valid bench scene"));
+            })
+        });
+        let (torch, v) = run_peer_render(a, peer, shared)?;
+        version = v;
+        println!(
+            "    {} round {}/{}: this renderer {ours:.1} ms, PyTorch {torch:.1} ms → {:.1}x",
+            label.trim_end(),
+            r + 1,
+            a.rounds,
+            torch / ours
+        );
+        rounds.push((ours, torch));
+    }
+    let ratios: Vec<f64> = rounds.iter().map(|(o, t)| t / o).collect();
+    let (ci, coverage) = mhi_eval::stats::median_interval(&ratios, 0.95)
+        .context("the peer or this renderer gave a non-finite time")?;
+    let ratio = median(ratios);
+    let torch = median(rounds.iter().map(|(_, t)| *t).collect());
+    println!(
+        "  PyTorch peer ({version}, {label}): {torch:8.1} ms  → ratio {ratio:.1}x (median of {} rounds; {:.0} % interval of the median {:.1}–{:.1}x)",
+        a.rounds,
+        100.0 * coverage,
+        ci[0],
+        ci[1]
+    );
+    let interval = serde_json::json!({ "interval": ci, "coverage": coverage });
+    Ok((torch, ratio, rounds, interval))
+}
+
+/// Write `v` to --json when asked.
+fn write_json(a: &BenchArgs, v: &serde_json::Value) -> anyhow::Result<()> {
+    if let Some(p) = &a.json {
+        mhi_data::write_atomic(p, &serde_json::to_vec_pretty(v)?)?;
+    }
+    Ok(())
+}
+
+/// The benches other than the render's (`--compare-backend`, `--scaling`, `--ops`,
+/// `--train-step`), when one is asked for: `true` when it ran.
+fn other_bench(a: &BenchArgs) -> anyhow::Result<bool> {
+    if let Some(other) = &a.compare_backend {
+        let v = step::backend_agreement(&a.data, *other)?;
+        write_json(a, &v)?;
+        return Ok(true);
+    }
+    if a.scaling {
+        let v = scaling::scaling(&a.scaling_out, a.runs)?;
+        write_json(a, &v)?;
+        return Ok(true);
+    }
+    if a.ops {
+        let v = ops::ops(&a.python, a.peer_ops.as_deref(), a.threads, a.runs)?;
+        write_json(a, &v)?;
+        return Ok(true);
+    }
+    if a.train_step {
+        train_step_bench(a)?;
+        return Ok(true);
+    }
+    Ok(false)
+}
+
 /// `cargo xtask bench`.
 pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
     if a.runs == 0 {
@@ -414,93 +560,7 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
         rayon::current_num_threads(),
         crate::common::kernel_paths()
     );
-    if let Some(other) = &a.compare_backend {
-        let v = step::backend_agreement(&a.data, *other)?;
-        if let Some(p) = &a.json {
-            mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
-        }
-        return Ok(());
-    }
-    if a.scaling {
-        let v = scaling::scaling(&a.scaling_out, a.runs)?;
-        if let Some(p) = &a.json {
-            mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
-        }
-        return Ok(());
-    }
-    if a.ops {
-        let v = ops::ops(&a.python, a.peer_ops.as_deref(), a.threads, a.runs)?;
-        if let Some(p) = &a.json {
-            mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
-        }
-        return Ok(());
-    }
-    if a.train_step {
-        let weights = crate::common::cache_dir(a.cache.as_deref()).join("weights");
-        let Some(peer) = &a.peer else {
-            let v = step::train_step(&a.data, &weights, a.runs)?;
-            if let Some(p) = &a.json {
-                mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
-            }
-            return Ok(());
-        };
-        if a.rounds == 0 {
-            bail!(
-                "--rounds 0: at least one round of this step and the peer's is needed for a ratio"
-            );
-        }
-        // Rounds of our step then the peer's, alternating (as the render's): a swing of the
-        // shared machine's speed falls on both sides of a round.
-        let mut rounds = Vec::with_capacity(a.rounds);
-        let mut v = serde_json::Value::Null;
-        for r in 0..a.rounds {
-            println!("\n== round {}/{} ==", r + 1, a.rounds);
-            v = step::train_step(&a.data, &weights, a.runs)?;
-            let torch = step::peer_train_step(&a.python, peer, a.threads, a.runs, &v)?;
-            let ratio = |key: &str| {
-                torch["ratio_burn_over_torch"][key]
-                    .as_f64()
-                    .unwrap_or(f64::NAN)
-            };
-            rounds.push([ratio("step"), ratio("stage1_inference")]);
-            v["peer"] = torch;
-        }
-        println!(
-            "\nburn / PyTorch over {} alternating rounds (median; distribution-free interval of the median):",
-            a.rounds
-        );
-        let mut summary = serde_json::Map::new();
-        for (part, (key, label)) in [
-            ("step", "phase-1 step (stage 1 + warp + loss, fwd+bwd)"),
-            ("stage1_inference", "stage 1 inference"),
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            let ratios: Vec<f64> = rounds.iter().map(|r| r[part]).collect();
-            let (ci, coverage) = mhi_eval::stats::median_interval(&ratios, 0.95)
-                .context("the peer or this step gave a non-finite time")?;
-            let m = median(ratios.clone());
-            println!(
-                "  {label:<48} {m:.2}x ({:.0} % interval {:.2}–{:.2}x; rounds {})",
-                100.0 * coverage,
-                ci[0],
-                ci[1],
-                ratios
-                    .iter()
-                    .map(|r| format!("{r:.2}"))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            );
-            summary.insert(
-                key.into(),
-                serde_json::json!({ "median": m, "interval": ci, "coverage": coverage, "rounds": ratios }),
-            );
-        }
-        v["ratio_rounds"] = serde_json::Value::Object(summary);
-        if let Some(p) = &a.json {
-            mhi_data::write_atomic(p, &serde_json::to_vec_pretty(&v)?)?;
-        }
+    if other_bench(a)? {
         return Ok(());
     }
     let pool = rayon::ThreadPoolBuilder::new()
@@ -584,38 +644,8 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
             } else {
                 (&mhi_pl, "RGBA per layer ")
             };
-            let mut rounds = Vec::with_capacity(a.rounds);
-            let mut version = String::new();
-            for r in 0..a.rounds {
-                let ours = pool.install(|| {
-                    median_ms(a.runs, || {
-                        std::hint::black_box(render(m, &target, &soft).expect("valid bench scene"));
-                    })
-                });
-                let (torch, v) = run_peer_render(a, peer, shared)?;
-                version = v;
-                println!(
-                    "    {} round {}/{}: this renderer {ours:.1} ms, PyTorch {torch:.1} ms → {:.1}x",
-                    label.trim_end(),
-                    r + 1,
-                    a.rounds,
-                    torch / ours
-                );
-                rounds.push((ours, torch));
-            }
-            let ratios: Vec<f64> = rounds.iter().map(|(o, t)| t / o).collect();
-            let (ci, coverage) = mhi_eval::stats::median_interval(&ratios, 0.95)
-                .context("the peer or this renderer gave a non-finite time")?;
-            let ratio = median(ratios);
-            let torch = median(rounds.iter().map(|(_, t)| *t).collect());
-            println!(
-                "  PyTorch peer ({version}, {label}): {torch:8.1} ms  → ratio {ratio:.1}x (median of {} rounds; {:.0} % interval of the median {:.1}–{:.1}x)",
-                a.rounds,
-                100.0 * coverage,
-                ci[0],
-                ci[1]
-            );
-            let interval = serde_json::json!({ "interval": ci, "coverage": coverage });
+            let (torch, ratio, rounds, interval) =
+                peer_rounds(a, peer, &pool, (m, &target, &soft), shared, label)?;
             if shared {
                 (torch_shared, ratio_shared, rounds_shared, interval_shared) =
                     (Some(torch), Some(ratio), rounds, interval);

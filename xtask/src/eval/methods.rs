@@ -46,114 +46,115 @@ impl Ctx<'_> {
         tf: &LoadedFrame,
         seq: &mhi_data::Sequence,
     ) -> anyhow::Result<Vec<Output>> {
-        let a = self.a;
         let mut out = Vec::new();
         if self.wants(Method::Nearest) {
-            let t0 = Instant::now();
-            let c = tf.camera.center_in_world();
-            let dr = (rf.camera.center_in_world() - c).length();
-            let ds_ = (sf.camera.center_in_world() - c).length();
-            let image = if dr <= ds_ {
-                rf.image.clone()
-            } else {
-                sf.image.clone()
-            };
-            out.push(Output {
-                method: "nearest".into(),
-                normals: 0,
-                planes: 0,
-                image,
-                times: Times {
-                    blend_ms: ms(t0),
-                    ..Times::default()
-                },
-                exact: Vec::new(),
-            });
+            out.push(nearest(rf, sf, tf));
         }
         for m in self.models {
-            let model = &m.model;
-            let n = model.normals().len();
-            let is_mpi = n == 1;
-            if is_mpi && !self.wants(Method::Mpi) {
-                continue;
-            }
-            let heuristics = [
-                (Method::Soft, "soft", BlendHeuristic::Soft),
-                (Method::Hard, "hard", BlendHeuristic::Hard),
-                (Method::Avg, "avg", BlendHeuristic::Avg),
-            ];
-            if !is_mpi
-                && !self.wants(Method::Learned)
-                && !heuristics.iter().any(|h| self.wants(h.0))
-            {
-                continue;
-            }
-            let d = model.depths().len();
-            let synth = ViewSynthesis::new(MhiSource::Learned(model));
-            let (mhi, t) = synth.mhi(rf, sf)?;
-            let inference = Times {
-                volume_ms: t.volume_ms,
-                network_ms: t.network_ms,
-                ..Times::default()
-            };
-            // The Soft blend needs no multi-normal images: it is rendered as the sweep's is,
-            // its blend bounded within the budget (light normals leave out more) and, for the
-            // pruned-against-exact table, exactly too.
-            let soft = |out: &mut Vec<Output>| -> anyhow::Result<()> {
-                let (image, render_ms, exact) = render_soft(&mhi, tf, a)?;
-                out.push(Output {
-                    method: "soft".into(),
-                    normals: n,
-                    planes: d,
-                    image,
-                    times: Times {
-                        render_ms,
-                        ..inference
-                    },
-                    exact,
-                });
-                Ok(())
-            };
-            let from_images = [Method::Learned, Method::Hard, Method::Avg];
-            if !is_mpi && !from_images.iter().any(|m| self.wants(*m)) {
-                soft(&mut out)?;
-                continue;
-            }
-            // The learned blend reads the multi-normal images (each within the budget on its
-            // own); Hard and Avg blend the same images.
-            let mn = multi_normal(&mhi, &tf.camera, a.prune())?;
-            let base = Times {
-                render_ms: mn.render_ms,
-                ..inference
-            };
-            if is_mpi {
-                out.push(Output {
-                    method: "mpi".into(),
-                    normals: 1,
-                    planes: d,
-                    image: mn.images[0].clone(),
-                    times: base,
-                    exact: Vec::new(),
-                });
-                continue;
-            }
-            let blend = |choice| mn.blend(&mhi, Some(model), &tf.camera, choice);
-            if self.wants(Method::Learned) {
-                let b = blend(BlendChoice::Learned)?;
-                out.push(blended("learned", n, d, b, base));
-            }
-            for (which, name, h) in heuristics {
-                if !self.wants(which) {
-                    continue;
-                }
-                if which == Method::Soft {
-                    soft(&mut out)?;
-                    continue;
-                }
-                let b = blend(BlendChoice::Heuristic(h))?;
-                out.push(blended(name, n, d, b, base));
-            }
+            self.model_methods(m, (rf, sf, tf), &mut out)?;
         }
+        self.sweep_methods((rf, sf, tf), &mut out)?;
+        self.oracle_methods((rf, sf, tf), seq, &mut out)?;
+        Ok(out)
+    }
+
+    /// A trained run's methods (learned, the heuristic blends of its stage 1, or the MPI).
+    fn model_methods(
+        &self,
+        m: &Loaded,
+        (rf, sf, tf): (&LoadedFrame, &LoadedFrame, &LoadedFrame),
+        out: &mut Vec<Output>,
+    ) -> anyhow::Result<()> {
+        let a = self.a;
+        let model = &m.model;
+        let n = model.normals().len();
+        let is_mpi = n == 1;
+        if is_mpi && !self.wants(Method::Mpi) {
+            return Ok(());
+        }
+        let heuristics = [
+            (Method::Soft, "soft", BlendHeuristic::Soft),
+            (Method::Hard, "hard", BlendHeuristic::Hard),
+            (Method::Avg, "avg", BlendHeuristic::Avg),
+        ];
+        if !is_mpi && !self.wants(Method::Learned) && !heuristics.iter().any(|h| self.wants(h.0)) {
+            return Ok(());
+        }
+        let d = model.depths().len();
+        let synth = ViewSynthesis::new(MhiSource::Learned(model));
+        let (mhi, t) = synth.mhi(rf, sf)?;
+        let inference = Times {
+            volume_ms: t.volume_ms,
+            network_ms: t.network_ms,
+            ..Times::default()
+        };
+        // The Soft blend needs no multi-normal images: it is rendered as the sweep's is,
+        // its blend bounded within the budget (light normals leave out more) and, for the
+        // pruned-against-exact table, exactly too.
+        let soft = |out: &mut Vec<Output>| -> anyhow::Result<()> {
+            let (image, render_ms, exact) = render_soft(&mhi, tf, a)?;
+            out.push(Output {
+                method: "soft".into(),
+                normals: n,
+                planes: d,
+                image,
+                times: Times {
+                    render_ms,
+                    ..inference
+                },
+                exact,
+            });
+            Ok(())
+        };
+        let from_images = [Method::Learned, Method::Hard, Method::Avg];
+        if !is_mpi && !from_images.iter().any(|m| self.wants(*m)) {
+            soft(out)?;
+            return Ok(());
+        }
+        // The learned blend reads the multi-normal images (each within the budget on its
+        // own); Hard and Avg blend the same images.
+        let mn = multi_normal(&mhi, &tf.camera, a.prune())?;
+        let base = Times {
+            render_ms: mn.render_ms,
+            ..inference
+        };
+        if is_mpi {
+            out.push(Output {
+                method: "mpi".into(),
+                normals: 1,
+                planes: d,
+                image: mn.images[0].clone(),
+                times: base,
+                exact: Vec::new(),
+            });
+            return Ok(());
+        }
+        let blend = |choice| mn.blend(&mhi, Some(model), &tf.camera, choice);
+        if self.wants(Method::Learned) {
+            let b = blend(BlendChoice::Learned)?;
+            out.push(blended("learned", n, d, b, base));
+        }
+        for (which, name, h) in heuristics {
+            if !self.wants(which) {
+                continue;
+            }
+            if which == Method::Soft {
+                soft(out)?;
+                continue;
+            }
+            let b = blend(BlendChoice::Heuristic(h))?;
+            out.push(blended(name, n, d, b, base));
+        }
+        Ok(())
+    }
+
+    /// The training-free sweep at every --sweep-grid size.
+    fn sweep_methods(
+        &self,
+        (rf, sf, tf): (&LoadedFrame, &LoadedFrame, &LoadedFrame),
+        out: &mut Vec<Output>,
+    ) -> anyhow::Result<()> {
+        let a = self.a;
         let made = |source: MhiSource<'_>| ViewSynthesis::new(source).mhi(rf, sf);
         for &(n, d) in self.sweep_grid {
             let (mhi, t) = made(MhiSource::Sweep {
@@ -181,6 +182,18 @@ impl Ctx<'_> {
                 exact,
             });
         }
+        Ok(())
+    }
+
+    /// The MHI of the scene's exact geometry at every --oracle-grid size (synthetic scenes).
+    fn oracle_methods(
+        &self,
+        (rf, sf, tf): (&LoadedFrame, &LoadedFrame, &LoadedFrame),
+        seq: &mhi_data::Sequence,
+        out: &mut Vec<Output>,
+    ) -> anyhow::Result<()> {
+        let a = self.a;
+        let made = |source: MhiSource<'_>| ViewSynthesis::new(source).mhi(rf, sf);
         if !self.oracle_grid.is_empty() {
             let scene = load_scene(&seq.dir().join("scene.json"))?;
             let truth = crate::common::truth_of(&scene, &rf.camera);
@@ -204,7 +217,31 @@ impl Ctx<'_> {
                 });
             }
         }
-        Ok(out)
+        Ok(())
+    }
+}
+
+/// The input view nearest the target, as it is.
+fn nearest(rf: &LoadedFrame, sf: &LoadedFrame, tf: &LoadedFrame) -> Output {
+    let t0 = Instant::now();
+    let c = tf.camera.center_in_world();
+    let dr = (rf.camera.center_in_world() - c).length();
+    let ds_ = (sf.camera.center_in_world() - c).length();
+    let image = if dr <= ds_ {
+        rf.image.clone()
+    } else {
+        sf.image.clone()
+    };
+    Output {
+        method: "nearest".into(),
+        normals: 0,
+        planes: 0,
+        image,
+        times: Times {
+            blend_ms: ms(t0),
+            ..Times::default()
+        },
+        exact: Vec::new(),
     }
 }
 

@@ -128,13 +128,12 @@ fn staged(
     Ok(())
 }
 
-fn oracle_into(a: &OracleArgs) -> anyhow::Result<()> {
-    ensure_synthetic(&a.data)?;
-    let ds = Dataset::open(&a.data, "test", 3)?;
-    let index = crate::common::sample_index(&ds, a.per_sequence, a.seed)?;
+/// The oracle study's configurations: the oracle MHI with its three blends, the oracle MPI at
+/// D = 32 and 160, and the sweep MHI.
+fn oracle_configs() -> anyhow::Result<Vec<Config>> {
     let d32 = depths_linear_in_disparity(1.0, 100.0, 32)?;
     let d160 = depths_linear_in_disparity(1.0, 100.0, 160)?;
-    let configs = vec![
+    Ok(vec![
         Config {
             name: "oracle MHI N=5 D=32".into(),
             normals: NormalSet::paper(),
@@ -177,7 +176,54 @@ fn oracle_into(a: &OracleArgs) -> anyhow::Result<()> {
             blend: OracleBlend::Heuristic(BlendHeuristic::Soft),
             sweep: true,
         },
-    ];
+    ])
+}
+
+/// The oracle study's table: mean PSNR per rotation bin (count), covered PSNR, times and what
+/// pruning changed.
+fn print_oracle_table(rows: &[Row], configs: &[Config], triplets: usize, scenes: usize) {
+    println!(
+        "{} triplets from {} test scenes; mean PSNR (dB) per rotation bin (count):",
+        triplets, scenes
+    );
+    let bins: Vec<String> = RotationBin::ALL
+        .iter()
+        .map(|b| b.label().to_string())
+        .chain(["all".to_string()])
+        .collect();
+    print!("{:<26}", "method");
+    for b in &bins {
+        print!("{:>16}", b);
+    }
+    println!(
+        "{:>14}{:>12}{:>14}{:>14}",
+        "covered PSNR", "ms/view", "pruned ms", "pruned ΔPSNR"
+    );
+    for c in configs {
+        print!("{:<26}", c.name);
+        for b in &bins {
+            match rows.iter().find(|r| r.method == c.name && &r.bin == b) {
+                Some(r) => print!("{:>10.2} ({:>3})", r.psnr, r.count),
+                None => print!("{:>16}", "-"),
+            }
+        }
+        if let Some(r) = rows.iter().find(|r| r.method == c.name && r.bin == "all") {
+            println!(
+                "{:>14.2}{:>12.1}{:>14.1}{:>+14.4}",
+                r.psnr_covered,
+                r.ms_per_view,
+                r.pruned_ms_per_view,
+                r.pruned_psnr - r.psnr
+            );
+        }
+    }
+}
+
+fn oracle_into(a: &OracleArgs) -> anyhow::Result<()> {
+    ensure_synthetic(&a.data)?;
+    let ds = Dataset::open(&a.data, "test", 3)?;
+    let index = crate::common::sample_index(&ds, a.per_sequence, a.seed)?;
+    let configs = oracle_configs()?;
     let mut acc: BTreeMap<(usize, RotationBin), Acc> = BTreeMap::new();
     let pb = crate::progress::bar(index.triplets.len() as u64, "oracle");
     std::fs::create_dir_all(&a.out)
@@ -284,42 +330,7 @@ fn oracle_into(a: &OracleArgs) -> anyhow::Result<()> {
     for (ci, e) in &all {
         rows.push(e.row(&configs[*ci].name, "all"));
     }
-    println!(
-        "{} triplets from {} test scenes; mean PSNR (dB) per rotation bin (count):",
-        index.triplets.len(),
-        ds.sequences.len()
-    );
-    let bins: Vec<String> = RotationBin::ALL
-        .iter()
-        .map(|b| b.label().to_string())
-        .chain(["all".to_string()])
-        .collect();
-    print!("{:<26}", "method");
-    for b in &bins {
-        print!("{:>16}", b);
-    }
-    println!(
-        "{:>14}{:>12}{:>14}{:>14}",
-        "covered PSNR", "ms/view", "pruned ms", "pruned ΔPSNR"
-    );
-    for c in &configs {
-        print!("{:<26}", c.name);
-        for b in &bins {
-            match rows.iter().find(|r| r.method == c.name && &r.bin == b) {
-                Some(r) => print!("{:>10.2} ({:>3})", r.psnr, r.count),
-                None => print!("{:>16}", "-"),
-            }
-        }
-        if let Some(r) = rows.iter().find(|r| r.method == c.name && r.bin == "all") {
-            println!(
-                "{:>14.2}{:>12.1}{:>14.1}{:>+14.4}",
-                r.psnr_covered,
-                r.ms_per_view,
-                r.pruned_ms_per_view,
-                r.pruned_psnr - r.psnr
-            );
-        }
-    }
+    print_oracle_table(&rows, &configs, index.triplets.len(), ds.sequences.len());
     let json = serde_json::to_vec_pretty(&rows)?;
     mhi_data::write_atomic(&a.out.join("report.json"), &json)?;
     Ok(())

@@ -425,8 +425,9 @@ pub fn sweep(a: &SweepArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn sweep_into(a: &SweepArgs) -> anyhow::Result<()> {
-    let ds = Dataset::open(&a.data, &a.split, 3)?;
+/// The sequence `sweep` reads (--seq, else the first) with its three frames checked: in range,
+/// distinct, of one size.
+fn sweep_sequence<'d>(a: &SweepArgs, ds: &'d Dataset) -> anyhow::Result<&'d mhi_data::Sequence> {
     let seq = match &a.seq {
         Some(name) => ds
             .sequences
@@ -465,6 +466,58 @@ fn sweep_into(a: &SweepArgs) -> anyhow::Result<()> {
         &seq.frames[a.src],
         &seq.frames[a.target],
     ])?;
+    Ok(seq)
+}
+
+/// `sweep`'s pictures: the photos, the render and the nearest input with their error maps, the
+/// reference's disparity (near = white) and the multi-normal images.
+fn save_sweep_pictures(
+    out_dir: &std::path::Path,
+    (rf, sf, tf): (
+        &mhi_data::LoadedFrame,
+        &mhi_data::LoadedFrame,
+        &mhi_data::LoadedFrame,
+    ),
+    render: &mhi_net::View,
+    nearest: &mhi_data::LoadedFrame,
+    mhi: &mhi_render::Mhi,
+    normals: &NormalSet,
+) -> anyhow::Result<()> {
+    save_png(&out_dir.join("target_photo.png"), &tf.image)?;
+    save_png(&out_dir.join("sweep_render.png"), &render.image)?;
+    save_png(&out_dir.join("nearest_input.png"), &nearest.image)?;
+    save_png(&out_dir.join("reference.png"), &rf.image)?;
+    save_png(&out_dir.join("source.png"), &sf.image)?;
+    save_png(
+        &out_dir.join("sweep_error.png"),
+        &error_map(&render.image, &tf.image),
+    )?;
+    save_png(
+        &out_dir.join("nearest_error.png"),
+        &error_map(&nearest.image, &tf.image),
+    )?;
+    // Disparity of the fronto-parallel (or first) normal as grey, near = white.
+    let fronto = normals
+        .normals()
+        .iter()
+        .position(|n| n.z > 0.999)
+        .unwrap_or(0);
+    let disp = mhi.expected_disparity(fronto);
+    let max = disp.iter().cloned().fold(1e-6_f32, f32::max);
+    let dimg = Rgb32FImage::from_fn(rf.camera.width, rf.camera.height, |x, y| {
+        let v = disp[(y * rf.camera.width + x) as usize] / max;
+        image::Rgb([v, v, v])
+    });
+    save_png(&out_dir.join("reference_disparity.png"), &dimg)?;
+    for (i, mni) in render.multi_normal.iter().enumerate() {
+        save_png(&out_dir.join(format!("multi_normal_{}.png", i + 1)), mni)?;
+    }
+    Ok(())
+}
+
+fn sweep_into(a: &SweepArgs) -> anyhow::Result<()> {
+    let ds = Dataset::open(&a.data, &a.split, 3)?;
+    let seq = sweep_sequence(a, &ds)?;
     crate::common::check_memory("--size", a.size.0, a.size.1, a.grid.normals * a.grid.planes)?;
     let load = |i: usize| load_frame(&seq.frames[i], Some(a.size), Fit::Stretch);
     let (rf, sf, tf) = (load(a.reference)?, load(a.src)?, load(a.target)?);
@@ -512,35 +565,7 @@ fn sweep_into(a: &SweepArgs) -> anyhow::Result<()> {
     let (np, ns) = m(&nearest.image)?;
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("cannot create {}", a.out.display()))?;
-    save_png(&a.out.join("target_photo.png"), &tf.image)?;
-    save_png(&a.out.join("sweep_render.png"), &out.image)?;
-    save_png(&a.out.join("nearest_input.png"), &nearest.image)?;
-    save_png(&a.out.join("reference.png"), &rf.image)?;
-    save_png(&a.out.join("source.png"), &sf.image)?;
-    save_png(
-        &a.out.join("sweep_error.png"),
-        &error_map(&out.image, &tf.image),
-    )?;
-    save_png(
-        &a.out.join("nearest_error.png"),
-        &error_map(&nearest.image, &tf.image),
-    )?;
-    // Disparity of the fronto-parallel (or first) normal as grey, near = white.
-    let fronto = normals
-        .normals()
-        .iter()
-        .position(|n| n.z > 0.999)
-        .unwrap_or(0);
-    let disp = mhi.expected_disparity(fronto);
-    let max = disp.iter().cloned().fold(1e-6_f32, f32::max);
-    let dimg = Rgb32FImage::from_fn(rf.camera.width, rf.camera.height, |x, y| {
-        let v = disp[(y * rf.camera.width + x) as usize] / max;
-        image::Rgb([v, v, v])
-    });
-    save_png(&a.out.join("reference_disparity.png"), &dimg)?;
-    for (i, mni) in out.multi_normal.iter().enumerate() {
-        save_png(&a.out.join(format!("multi_normal_{}.png", i + 1)), mni)?;
-    }
+    save_sweep_pictures(&a.out, (&rf, &sf, &tf), &out, nearest, &mhi, &normals)?;
     let summary = serde_json::json!({
         "sequence": seq.name, "reference": a.reference, "source": a.src, "target": a.target,
         "size": [a.size.0, a.size.1], "normals": normals.len(), "planes": a.grid.planes,

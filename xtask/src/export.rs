@@ -104,6 +104,95 @@ struct Manifest<'a> {
     video: Option<&'static str>,
 }
 
+/// One normal's atlas as written: the layers' places, the atlas, its alpha bytes and its colour
+/// bytes (per-layer colour only).
+type AtlasOut = (Vec<Layer>, Atlas, Vec<u8>, Option<Vec<u8>>);
+
+/// One normal's atlas: its kept layers' alphas tiled into `alpha_normal_I.png` (and, for
+/// per-layer colour, `colour_normal_I.png`) in `dir`; returns the layers' places, the atlas, and
+/// the raw bytes of both images for data.js.
+fn write_atlas(
+    dir: &Path,
+    mhi: &Mhi,
+    plan: &ScenePlan,
+    i: usize,
+    per_layer: Option<&Vec<image::Rgb32FImage>>,
+) -> anyhow::Result<AtlasOut> {
+    let (w, h) = (
+        mhi.reference().width as usize,
+        mhi.reference().height as usize,
+    );
+    let mut layers = Vec::new();
+    let mut colour_bytes = None;
+    let kept: Vec<usize> = match plan.per_normal.get(i) {
+        Some(u) if !u.dropped && !u.kept_depths.is_empty() => u.kept_depths.clone(),
+        _ => vec![0],
+    };
+    let cols = (kept.len() as f64).sqrt().ceil().max(1.0) as usize;
+    let rows = kept.len().div_ceil(cols);
+    let aw = cols * w;
+    let mut a = vec![0_u8; aw * rows * h];
+    let mut c = vec![
+        0_u8;
+        if per_layer.is_some() {
+            3 * aw * rows * h
+        } else {
+            0
+        }
+    ];
+    for (m, &j) in kept.iter().enumerate() {
+        let (tx, ty) = (m % cols, m / cols);
+        let src = mhi.alpha_layer(i, j);
+        for y in 0..h {
+            let row = &mut a[(ty * h + y) * aw + tx * w..][..w];
+            for (o, v) in row.iter_mut().zip(&src[y * w..(y + 1) * w]) {
+                *o = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+            }
+        }
+        if let Some(v) = per_layer {
+            let src = mhi_data::to_u8(&v[i * mhi.d() + j]);
+            for y in 0..h {
+                let at = 3 * ((ty * h + y) * aw + tx * w);
+                c[at..at + 3 * w].copy_from_slice(&src.as_raw()[3 * y * w..3 * (y + 1) * w]);
+            }
+        }
+        layers.push(Layer {
+            normal: i,
+            depth_index: j,
+            depth: mhi.depths()[j],
+            tile_x: tx,
+            tile_y: ty,
+        });
+    }
+    let file = format!("alpha_normal_{i}.png");
+    let img = image::GrayImage::from_raw(aw as u32, (rows * h) as u32, a).context("atlas size")?;
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
+    mhi_data::write_atomic(&dir.join(&file), &png)?;
+    let alpha_bytes = img.into_raw();
+    let colour_file = if per_layer.is_some() {
+        let file = format!("colour_normal_{i}.png");
+        let img = image::RgbImage::from_raw(aw as u32, (rows * h) as u32, c)
+            .context("colour atlas size")?;
+        mhi_data::write_png(&dir.join(&file), &img)?;
+        colour_bytes = Some(img.into_raw());
+        Some(file)
+    } else {
+        None
+    };
+    Ok((
+        layers,
+        Atlas {
+            file,
+            colour_file,
+            cols,
+            rows,
+        },
+        alpha_bytes,
+        colour_bytes,
+    ))
+}
+
 /// Write the viewer folder for `mhi` into `dir` (created if needed; files written atomically).
 /// Layers the plan leaves out are not written; a normal the plan drops keeps its farthest layer
 /// only (its blend weight is within the budget everywhere). `inputs` are the photos' cameras,
@@ -133,69 +222,11 @@ pub fn write_viewer(
     let mut atlas_bytes = Vec::new();
     let mut colour_bytes = Vec::new();
     for i in 0..mhi.n() {
-        let kept: Vec<usize> = match plan.per_normal.get(i) {
-            Some(u) if !u.dropped && !u.kept_depths.is_empty() => u.kept_depths.clone(),
-            _ => vec![0],
-        };
-        let cols = (kept.len() as f64).sqrt().ceil().max(1.0) as usize;
-        let rows = kept.len().div_ceil(cols);
-        let aw = cols * w;
-        let mut a = vec![0_u8; aw * rows * h];
-        let mut c = vec![
-            0_u8;
-            if per_layer.is_some() {
-                3 * aw * rows * h
-            } else {
-                0
-            }
-        ];
-        for (m, &j) in kept.iter().enumerate() {
-            let (tx, ty) = (m % cols, m / cols);
-            let src = mhi.alpha_layer(i, j);
-            for y in 0..h {
-                let row = &mut a[(ty * h + y) * aw + tx * w..][..w];
-                for (o, v) in row.iter_mut().zip(&src[y * w..(y + 1) * w]) {
-                    *o = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
-                }
-            }
-            if let Some(v) = per_layer {
-                let src = mhi_data::to_u8(&v[i * mhi.d() + j]);
-                for y in 0..h {
-                    let at = 3 * ((ty * h + y) * aw + tx * w);
-                    c[at..at + 3 * w].copy_from_slice(&src.as_raw()[3 * y * w..3 * (y + 1) * w]);
-                }
-            }
-            layers.push(Layer {
-                normal: i,
-                depth_index: j,
-                depth: mhi.depths()[j],
-                tile_x: tx,
-                tile_y: ty,
-            });
-        }
-        let file = format!("alpha_normal_{i}.png");
-        let img =
-            image::GrayImage::from_raw(aw as u32, (rows * h) as u32, a).context("atlas size")?;
-        let mut png = Vec::new();
-        img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
-        mhi_data::write_atomic(&dir.join(&file), &png)?;
-        atlas_bytes.push(img.into_raw());
-        let colour_file = if per_layer.is_some() {
-            let file = format!("colour_normal_{i}.png");
-            let img = image::RgbImage::from_raw(aw as u32, (rows * h) as u32, c)
-                .context("colour atlas size")?;
-            mhi_data::write_png(&dir.join(&file), &img)?;
-            colour_bytes.push(img.into_raw());
-            Some(file)
-        } else {
-            None
-        };
-        atlases.push(Atlas {
-            file,
-            colour_file,
-            cols,
-            rows,
-        });
+        let (l, atlas, alpha, colour) = write_atlas(dir, mhi, plan, i, per_layer)?;
+        layers.extend(l);
+        atlases.push(atlas);
+        atlas_bytes.push(alpha);
+        colour_bytes.extend(colour);
     }
     let reference_rgb = match shared {
         Some(colour) => {

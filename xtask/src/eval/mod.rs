@@ -302,84 +302,18 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
 
     let boot = Bootstrap::default().with_seed(a.bootstrap_seed);
     let rows = report::aggregate(&measurements, &boot);
-    let configs = report::configs(&rows);
-    let mut pairs = comparison_pairs(&configs);
-    for (x, y) in &a.compare {
-        for cx in configs.iter().filter(|c| c.0 == *x) {
-            for cy in configs.iter().filter(|c| c.0 == *y) {
-                if !pairs.contains(&(cx.clone(), cy.clone())) {
-                    pairs.push((cx.clone(), cy.clone()));
-                }
-            }
-        }
-    }
-    for (x, y) in &a.compare {
-        for m in [x, y] {
-            if !configs.iter().any(|c| c.0 == *m) {
-                eprintln!(
-                    "warning: --compare {x},{y}: {m} scored no view here (a method that needs a --run, or oracle on real photos?)"
-                );
-            }
-        }
-    }
-    let comparisons: Vec<Comparison> = pairs
-        .iter()
-        .flat_map(|(x, y)| report::compare(&measurements, x, y, &boot))
-        .collect();
-    let meta = Meta {
-        dataset: a
-            .data
-            .iter()
-            .map(|d| d.display().to_string())
-            .collect::<Vec<_>>()
-            .join(", "),
-        split: a.split.clone(),
-        sequences: ds.sequences.iter().map(|s| s.name.clone()).collect(),
-        triplets: index.triplets.len(),
-        bin_counts: index.bin_counts(),
-        size: sizes_used[0],
-        sizes: sizes_used.clone(),
-        runs: models
-            .iter()
-            .map(|m| {
-                let c = m.model.config();
-                serde_json::json!({
-                    "run": m.run.display().to_string(), "normals": c.stage1.normals,
-                    "planes": c.planes, "steps": m.model.step(), "phase1_steps": c.phase1_steps,
-                    "phase2_steps": c.phase2_steps, "size": [c.width, c.height], "loss": c.loss,
-                    "stage1_width": c.stage1.unet.width, "blend_width": c.blend.width,
-                })
-            })
-            .collect(),
-        lpips: if lpips_net.is_some() {
-            "LPIPS v0.1, AlexNet".into()
-        } else {
-            format!("not computed: no weights in {}", weights_dir.display())
-        },
-        covered: format!(
-            "target pixels whose ray meets the reference camera's fronto-parallel plane at depth {} inside the reference image; LPIPS covered = LPIPS of the render with uncovered pixels replaced by the ground truth's",
-            a.range.far
-        ),
-        poses: match a.poses {
-            crate::options::PoseArg::Given => "given (the dataset's cameras)".into(),
-            crate::options::PoseArg::Estimated => format!(
-                "estimated from the frames by mhi-pose with the dataset's intrinsics, the translation scaled to the true baseline; {pose_failures} of {} triplets kept the true pose (no estimate)",
-                index.triplets.len()
-            ),
-        },
-        timing: "ms per view from the two decoded input images to the final image (cost volume or sweep, networks, building the MHI, render, blend), after one warm-up view; file I/O and metrics excluded".into(),
-        sweep: sweep_config,
-        bootstrap: boot,
-        machine: machine(),
-        threads: rayon::current_num_threads(),
-        date: crate::date(),
-        orbit_rotation_deg: orbit_rotation,
-        renders: a
-            .renders
-            .iter()
-            .map(|(n, d)| (n.clone(), d.display().to_string()))
-            .collect(),
-    };
+    let comparisons = comparisons(a, &rows, &measurements, &boot);
+    let meta = report_meta(
+        a,
+        &ds,
+        &index,
+        &models,
+        &sizes_used,
+        (lpips_net.is_some(), &weights_dir),
+        pose_failures,
+        (sweep_config, boot),
+        orbit_rotation,
+    );
     let json = serde_json::to_vec_pretty(&ReportJson {
         meta: &meta,
         rows: &rows,
@@ -409,6 +343,108 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
     )?;
     print_summary(&rows, &comparisons);
     Ok(())
+}
+
+/// The paired comparisons: the default pairs of the configurations scored, and --compare's.
+fn comparisons(
+    a: &EvalArgs,
+    rows: &[Row],
+    measurements: &[Measurement],
+    boot: &Bootstrap,
+) -> Vec<Comparison> {
+    let configs = report::configs(rows);
+    let mut pairs = comparison_pairs(&configs);
+    for (x, y) in &a.compare {
+        for cx in configs.iter().filter(|c| c.0 == *x) {
+            for cy in configs.iter().filter(|c| c.0 == *y) {
+                if !pairs.contains(&(cx.clone(), cy.clone())) {
+                    pairs.push((cx.clone(), cy.clone()));
+                }
+            }
+        }
+    }
+    for (x, y) in &a.compare {
+        for m in [x, y] {
+            if !configs.iter().any(|c| c.0 == *m) {
+                eprintln!(
+                    "warning: --compare {x},{y}: {m} scored no view here (a method that needs a --run, or oracle on real photos?)"
+                );
+            }
+        }
+    }
+    pairs
+        .iter()
+        .flat_map(|(x, y)| report::compare(measurements, x, y, boot))
+        .collect()
+}
+
+/// What the report says about how it was made.
+#[allow(clippy::too_many_arguments)]
+fn report_meta(
+    a: &EvalArgs,
+    ds: &Dataset,
+    index: &TripletIndex,
+    models: &[Loaded],
+    sizes_used: &[(u32, u32)],
+    (lpips, weights_dir): (bool, &Path),
+    pose_failures: usize,
+    (sweep_config, boot): (SweepConfig, Bootstrap),
+    orbit_rotation: Option<f64>,
+) -> Meta {
+    Meta {
+        dataset: a
+            .data
+            .iter()
+            .map(|d| d.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        split: a.split.clone(),
+        sequences: ds.sequences.iter().map(|s| s.name.clone()).collect(),
+        triplets: index.triplets.len(),
+        bin_counts: index.bin_counts(),
+        size: sizes_used[0],
+        sizes: sizes_used.to_vec(),
+        runs: models
+            .iter()
+            .map(|m| {
+                let c = m.model.config();
+                serde_json::json!({
+                    "run": m.run.display().to_string(), "normals": c.stage1.normals,
+                    "planes": c.planes, "steps": m.model.step(), "phase1_steps": c.phase1_steps,
+                    "phase2_steps": c.phase2_steps, "size": [c.width, c.height], "loss": c.loss,
+                    "stage1_width": c.stage1.unet.width, "blend_width": c.blend.width,
+                })
+            })
+            .collect(),
+        lpips: if lpips {
+            "LPIPS v0.1, AlexNet".into()
+        } else {
+            format!("not computed: no weights in {}", weights_dir.display())
+        },
+        covered: format!(
+            "target pixels whose ray meets the reference camera's fronto-parallel plane at depth {} inside the reference image; LPIPS covered = LPIPS of the render with uncovered pixels replaced by the ground truth's",
+            a.range.far
+        ),
+        poses: match a.poses {
+            crate::options::PoseArg::Given => "given (the dataset's cameras)".into(),
+            crate::options::PoseArg::Estimated => format!(
+                "estimated from the frames by mhi-pose with the dataset's intrinsics, the translation scaled to the true baseline; {pose_failures} of {} triplets kept the true pose (no estimate)",
+                index.triplets.len()
+            ),
+        },
+        timing: "ms per view from the two decoded input images to the final image (cost volume or sweep, networks, building the MHI, render, blend), after one warm-up view; file I/O and metrics excluded".into(),
+        sweep: sweep_config,
+        bootstrap: boot,
+        machine: machine(),
+        threads: rayon::current_num_threads(),
+        date: crate::date(),
+        orbit_rotation_deg: orbit_rotation,
+        renders: a
+            .renders
+            .iter()
+            .map(|(n, d)| (n.clone(), d.display().to_string()))
+            .collect(),
+    }
 }
 
 /// Refuse options that cannot be measured honestly, before any work.

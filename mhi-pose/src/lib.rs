@@ -542,6 +542,71 @@ pub struct MatchPose {
     pub points: Vec<[f64; 3]>,
 }
 
+/// Whether a homography explains nearly every match (90 %): either a rotation about the camera
+/// centre or a distant scene (the homography is then nearly K₂ R K₁⁻¹, `Ok(true)`; whether the
+/// small parallax left suffices is decided later) or one plane seen in perspective
+/// ([`Error::Planar`]). `Ok(false)` when no homography explains that many.
+fn homography_precheck(
+    v1: &[kornia_algebra::Vec2F64],
+    v2: &[kornia_algebra::Vec2F64],
+    (k1, k2): (DMat3, DMat3),
+    ransac: kornia_3d::pose::RansacParams,
+    matches: usize,
+) -> Result<bool> {
+    let Ok(h) = kornia_3d::pose::ransac_homography(
+        v1,
+        v2,
+        &kornia_3d::pose::RansacParams {
+            min_inliers: 4,
+            ..ransac
+        },
+    ) else {
+        return Ok(false);
+    };
+    if (h.inlier_count as f64) < 0.9 * matches as f64 {
+        return Ok(false);
+    }
+    let m = k2.inverse() * DMat3::from_cols_array(&h.model.to_cols_array()) * k1;
+    let det = m.determinant();
+    let mostly_rotation = det.abs() > 1e-12 && {
+        let n = m * (1.0 / det.cbrt());
+        mhi_geom::rotation_error(&n) < 0.02
+    };
+    if !mostly_rotation {
+        return Err(Error::Planar {
+            homography: h.inlier_count,
+            epipolar: 0,
+        });
+    }
+    Ok(true)
+}
+
+/// The median parallax of the inliers with the rotation removed: the angle between R·ray₁ and
+/// ray₂, in degrees (0 without inliers).
+fn median_parallax_deg(
+    x1: &[[f64; 2]],
+    x2: &[[f64; 2]],
+    inliers: &[bool],
+    r: DMat3,
+    (k1, k2): (DMat3, DMat3),
+) -> f64 {
+    let (k1i, k2i) = (k1.inverse(), k2.inverse());
+    let mut parallax: Vec<f64> = (0..inliers.len().min(x1.len()).min(x2.len()))
+        .filter(|&i| inliers[i])
+        .map(|i| {
+            let b1 = (r * (k1i * DVec3::new(x1[i][0], x1[i][1], 1.0))).normalize();
+            let b2 = (k2i * DVec3::new(x2[i][0], x2[i][1], 1.0)).normalize();
+            b1.dot(b2).clamp(-1.0, 1.0).acos().to_degrees()
+        })
+        .collect();
+    parallax.sort_by(f64::total_cmp);
+    if parallax.is_empty() {
+        0.0
+    } else {
+        percentile(&parallax, 0.5)
+    }
+}
+
 /// The relative pose of two cameras (`k1`, `k2` in pixels) from matched positions `x1[i] ↔
 /// x2[i]`: a 5-point essential matrix in RANSAC (inlier threshold `threshold_px`, seeded) raced
 /// against a homography, the cheirality vote, LM refinement and triangulation; scaled as in
@@ -575,32 +640,7 @@ pub fn pose_from_matches(
         random_seed: Some(seed),
         ..RansacParams::default()
     };
-    // A homography that explains nearly every match: either a rotation about the camera
-    // centre or a distant scene (the homography is then nearly K₂ R K₁⁻¹; whether the small
-    // parallax left suffices is decided below) or one plane seen in perspective: refused.
-    let mut mostly_rotation = false;
-    if let Ok(h) = kornia_3d::pose::ransac_homography(
-        &v1,
-        &v2,
-        &RansacParams {
-            min_inliers: 4,
-            ..ransac
-        },
-    ) && h.inlier_count as f64 >= 0.9 * matches as f64
-    {
-        let m = k2.inverse() * DMat3::from_cols_array(&h.model.to_cols_array()) * k1;
-        let det = m.determinant();
-        mostly_rotation = det.abs() > 1e-12 && {
-            let n = m * (1.0 / det.cbrt());
-            mhi_geom::rotation_error(&n) < 0.02
-        };
-        if !mostly_rotation {
-            return Err(Error::Planar {
-                homography: h.inlier_count,
-                epipolar: 0,
-            });
-        }
-    }
+    let mostly_rotation = homography_precheck(&v1, &v2, (k1, k2), ransac, matches)?;
     let estimator = TwoViewEstimator::builder()
         .epipolar_solver(EssentialNister5ptSolver { ransac })
         // The homography only competes: kornia gives up on the whole pair when it finds fewer
@@ -630,22 +670,7 @@ pub fn pose_from_matches(
     let inliers = result.inliers.iter().filter(|b| **b).count();
     let r = DMat3::from_cols_array(&result.rotation.to_cols_array());
     let t = DVec3::from_array(result.translation.to_array());
-    // Parallax with the rotation removed: the angle between R·ray1 and ray2 per inlier.
-    let (k1i, k2i) = (k1.inverse(), k2.inverse());
-    let mut parallax: Vec<f64> = (0..matches)
-        .filter(|&i| result.inliers[i])
-        .map(|i| {
-            let b1 = (r * (k1i * DVec3::new(x1[i][0], x1[i][1], 1.0))).normalize();
-            let b2 = (k2i * DVec3::new(x2[i][0], x2[i][1], 1.0)).normalize();
-            b1.dot(b2).clamp(-1.0, 1.0).acos().to_degrees()
-        })
-        .collect();
-    parallax.sort_by(f64::total_cmp);
-    let median_parallax = if parallax.is_empty() {
-        0.0
-    } else {
-        percentile(&parallax, 0.5)
-    };
+    let median_parallax = median_parallax_deg(x1, x2, &result.inliers, r, (k1, k2));
     if median_parallax < MIN_PARALLAX_DEG {
         return Err(Error::NoParallax {
             median_deg: median_parallax,

@@ -558,6 +558,82 @@ fn metric_table(s: &mut String, rows: &[Row], metric: Metric, title: &str) {
     s.push('\n');
 }
 
+/// Per method evaluated at more than one (N, D): its covered PSNR and time per view as a grid.
+fn nd_sweep_tables(s: &mut String, rows: &[Row], cfgs: &[Config]) {
+    let mut methods: Vec<&str> = Vec::new();
+    for (m, _, _) in cfgs {
+        if !methods.contains(&m.as_str()) {
+            methods.push(m);
+        }
+    }
+    for m in methods {
+        let mine: Vec<&Config> = cfgs.iter().filter(|c| c.0 == m).collect();
+        if mine.len() < 2 {
+            continue;
+        }
+        let mut ns: Vec<usize> = mine.iter().map(|c| c.1).collect();
+        let mut ds: Vec<usize> = mine.iter().map(|c| c.2).collect();
+        ns.sort_unstable();
+        ns.dedup();
+        ds.sort_unstable();
+        ds.dedup();
+        let _ = writeln!(
+            s,
+            "### N × D sweep: {m} (covered PSNR dB / ms per view, all triplets)\n"
+        );
+        let _ = write!(s, "| N \\ D |");
+        for d in &ds {
+            let _ = write!(s, " D={d} |");
+        }
+        let _ = writeln!(s, "\n|---|{}", "---:|".repeat(ds.len()));
+        for n in &ns {
+            let _ = write!(s, "| N={n} |");
+            for d in &ds {
+                match find(rows, (m, *n, *d), "all", "all") {
+                    Some(r) => {
+                        let p = r.psnr_covered.unwrap_or(f64::NAN);
+                        let _ = write!(s, " {p:.2} / {} |", ms_cell(Some(r)));
+                    }
+                    None => s.push_str(" – |"),
+                }
+            }
+            s.push('\n');
+        }
+        s.push('\n');
+    }
+}
+
+/// Time per view and its parts, per configuration.
+fn time_table(s: &mut String, rows: &[Row], cfgs: &[Config]) {
+    let _ = writeln!(
+        s,
+        "### Time per novel view (ms, mean over all triplets)\n\nFrom the two decoded input images to the final image (cost volume or sweep, networks, building the MHI, render, blend), after one warm-up view; file I/O and metrics are not included.\n\n| method | cost volume | network | render | blend | total |\n|---|---:|---:|---:|---:|---:|"
+    );
+    for (m, n, d) in cfgs {
+        if let Some(r) = find(rows, (m, *n, *d), "all", "all") {
+            if !r.timed {
+                let _ = writeln!(
+                    s,
+                    "| {} | not measured here (scored from files) | | | | |",
+                    config_label(m, *n, *d)
+                );
+                continue;
+            }
+            let t = r.times;
+            let _ = writeln!(
+                s,
+                "| {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+                config_label(m, *n, *d),
+                t.volume_ms,
+                t.network_ms,
+                t.render_ms,
+                t.blend_ms,
+                r.ms_per_view
+            );
+        }
+    }
+}
+
 /// The tables of `report.md`: covered-region metrics first (per configuration × rotation bin,
 /// with 95 % bootstrap intervals) and the covered fraction per bin, then the whole-image
 /// metrics, interpolation vs extrapolation, the N × D sweep of every method run at several
@@ -629,75 +705,8 @@ pub fn markdown_tables(rows: &[Row], comparisons: &[Comparison]) -> String {
         );
     }
     s.push('\n');
-    // N × D sweep: methods evaluated at more than one configuration.
-    let mut methods: Vec<&str> = Vec::new();
-    for (m, _, _) in &cfgs {
-        if !methods.contains(&m.as_str()) {
-            methods.push(m);
-        }
-    }
-    for m in methods {
-        let mine: Vec<&Config> = cfgs.iter().filter(|c| c.0 == m).collect();
-        if mine.len() < 2 {
-            continue;
-        }
-        let mut ns: Vec<usize> = mine.iter().map(|c| c.1).collect();
-        let mut ds: Vec<usize> = mine.iter().map(|c| c.2).collect();
-        ns.sort_unstable();
-        ns.dedup();
-        ds.sort_unstable();
-        ds.dedup();
-        let _ = writeln!(
-            s,
-            "### N × D sweep: {m} (covered PSNR dB / ms per view, all triplets)\n"
-        );
-        let _ = write!(s, "| N \\ D |");
-        for d in &ds {
-            let _ = write!(s, " D={d} |");
-        }
-        let _ = writeln!(s, "\n|---|{}", "---:|".repeat(ds.len()));
-        for n in &ns {
-            let _ = write!(s, "| N={n} |");
-            for d in &ds {
-                match find(rows, (m, *n, *d), "all", "all") {
-                    Some(r) => {
-                        let p = r.psnr_covered.unwrap_or(f64::NAN);
-                        let _ = write!(s, " {p:.2} / {} |", ms_cell(Some(r)));
-                    }
-                    None => s.push_str(" – |"),
-                }
-            }
-            s.push('\n');
-        }
-        s.push('\n');
-    }
-    let _ = writeln!(
-        s,
-        "### Time per novel view (ms, mean over all triplets)\n\nFrom the two decoded input images to the final image (cost volume or sweep, networks, building the MHI, render, blend), after one warm-up view; file I/O and metrics are not included.\n\n| method | cost volume | network | render | blend | total |\n|---|---:|---:|---:|---:|---:|"
-    );
-    for (m, n, d) in &cfgs {
-        if let Some(r) = find(rows, (m, *n, *d), "all", "all") {
-            if !r.timed {
-                let _ = writeln!(
-                    s,
-                    "| {} | not measured here (scored from files) | | | | |",
-                    config_label(m, *n, *d)
-                );
-                continue;
-            }
-            let t = r.times;
-            let _ = writeln!(
-                s,
-                "| {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
-                config_label(m, *n, *d),
-                t.volume_ms,
-                t.network_ms,
-                t.render_ms,
-                t.blend_ms,
-                r.ms_per_view
-            );
-        }
-    }
+    nd_sweep_tables(&mut s, rows, &cfgs);
+    time_table(&mut s, rows, &cfgs);
     s.push('\n');
     s.push_str(&comparison_table(comparisons));
     s

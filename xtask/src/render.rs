@@ -308,6 +308,54 @@ fn plan_views(
     Ok((plan, plan_json))
 }
 
+/// The two photos at the working size with their cameras, and their MHI (the trained model's, or
+/// the sweep's), timed.
+fn build_mhi(
+    a: &RenderArgs,
+    file: &CameraFile,
+    size: (u32, u32),
+    learned: Option<&Model>,
+) -> anyhow::Result<(
+    mhi_data::LoadedFrame,
+    mhi_data::LoadedFrame,
+    mhi_render::Mhi,
+)> {
+    let frame = |path: &PathBuf, row: usize| Frame {
+        row: file.rows[row],
+        path: path.clone(),
+    };
+    let rf = load_frame(
+        &frame(&a.reference, a.ref_row - 1),
+        Some(size),
+        Fit::Stretch,
+    )?;
+    let sf = load_frame(&frame(&a.src, a.src_row - 1), Some(size), Fit::Stretch)?;
+    let t0 = Instant::now();
+    let synth = ViewSynthesis::new(match learned {
+        Some(m) => MhiSource::Learned(m),
+        None => MhiSource::Sweep {
+            normals: a.grid.normal_set()?,
+            depths: a.grid.depths()?,
+            config: SweepConfig::for_short_side(size.0.min(size.1)),
+        },
+    });
+    let (mhi, _) = synth.mhi(&rf, &sf)?;
+    println!(
+        "MHI: {} normals x {} planes at {}x{} ({}) in {:.0} ms",
+        mhi.n(),
+        mhi.d(),
+        size.0,
+        size.1,
+        if learned.is_some() {
+            "trained stage 1"
+        } else {
+            "plane sweep"
+        },
+        t0.elapsed().as_secs_f64() * 1e3
+    );
+    Ok((rf, sf, mhi))
+}
+
 fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result<()> {
     let file = camera_file(a)?;
     if let Some(w) = &file.rotation_warning {
@@ -329,40 +377,8 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
     }
     let learned = load_model(a)?;
     let size = working_size(a, learned.as_ref())?;
-    let frame = |path: &PathBuf, row: usize| Frame {
-        row: file.rows[row],
-        path: path.clone(),
-    };
-    let rf = load_frame(
-        &frame(&a.reference, a.ref_row - 1),
-        Some(size),
-        Fit::Stretch,
-    )?;
-    let sf = load_frame(&frame(&a.src, a.src_row - 1), Some(size), Fit::Stretch)?;
-    let t0 = Instant::now();
-    let synth = ViewSynthesis::new(match &learned {
-        Some(m) => MhiSource::Learned(m),
-        None => MhiSource::Sweep {
-            normals: a.grid.normal_set()?,
-            depths: a.grid.depths()?,
-            config: SweepConfig::for_short_side(size.0.min(size.1)),
-        },
-    });
-    let (mhi, _) = synth.mhi(&rf, &sf)?;
-    let model = synth.model();
-    println!(
-        "MHI: {} normals x {} planes at {}x{} ({}) in {:.0} ms",
-        mhi.n(),
-        mhi.d(),
-        size.0,
-        size.1,
-        if model.is_some() {
-            "trained stage 1"
-        } else {
-            "plane sweep"
-        },
-        t0.elapsed().as_secs_f64() * 1e3
-    );
+    let (rf, sf, mhi) = build_mhi(a, &file, size, learned.as_ref())?;
+    let model = learned.as_ref();
     let listed = || listed_cameras(a, &file, size);
     let listed_count = file.rows.len() - 2;
     let baseline = (rf.camera.center_in_world() - sf.camera.center_in_world()).length();

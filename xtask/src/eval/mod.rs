@@ -222,22 +222,7 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
         if !sizes_used.contains(&size) {
             sizes_used.push(size);
         }
-        let load = |i: usize| -> anyhow::Result<LoadedFrame> {
-            Ok(load_frame(&seq.frames[i], Some(size), Fit::Stretch)?)
-        };
-        let (rf, mut sf, tf) = (load(t.reference)?, load(t.source)?, load(t.target)?);
-        if a.poses == crate::options::PoseArg::Estimated {
-            match estimated_source(&seq.frames[t.reference], &seq.frames[t.source], &rf, &sf) {
-                Ok(cam) => sf.camera = cam,
-                Err(e) => {
-                    pose_failures += 1;
-                    eprintln!(
-                        "warning: triplet {ti}: no estimated pose ({}); it keeps the true one",
-                        mhi_data::sanitize::for_terminal(&format!("{e:#}"))
-                    );
-                }
-            }
-        }
+        let (rf, sf, tf) = load_triplet(a, seq, t, size, ti, &mut pose_failures)?;
         if ti == 0 {
             // Warm-up: the first view of every method pays for allocations and lazy
             // initialisation that a user rendering many views pays once.
@@ -314,22 +299,17 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
         (sweep_config, boot),
         orbit_rotation,
     );
-    let json = serde_json::to_vec_pretty(&ReportJson {
-        meta: &meta,
-        rows: &rows,
-        comparisons: &comparisons,
-        measurements: &measurements,
-    })?;
-    mhi_data::write_atomic(&a.out.join("report.json"), &json)?;
-    let prune_rows = prune_rows(&pruning, &boot);
-    mhi_data::write_atomic(
-        &a.out.join("pruning.json"),
-        &serde_json::to_vec_pretty(&serde_json::json!({
-            "budget": a.prune().budget, "budget_levels": a.budget, "rows": prune_rows,
-            "measurements": pruning,
-        }))?,
+    let prune_rows = write_data_files(
+        a,
+        &ReportJson {
+            meta: &meta,
+            rows: &rows,
+            comparisons: &comparisons,
+            measurements: &measurements,
+        },
+        &pruning,
+        &boot,
     )?;
-    mhi_data::write_atomic(&a.out.join("report.csv"), report::csv(&rows).as_bytes())?;
 
     write_figures_and_markdown(
         a,
@@ -445,6 +425,56 @@ fn report_meta(
             .map(|(n, d)| (n.clone(), d.display().to_string()))
             .collect(),
     }
+}
+
+/// A triplet's three frames at `size`; with --poses estimated, the source's camera estimated
+/// from the frames (the true one kept, counted in `pose_failures` and said, when that fails).
+fn load_triplet(
+    a: &EvalArgs,
+    seq: &mhi_data::Sequence,
+    t: &mhi_data::Triplet,
+    size: (u32, u32),
+    ti: usize,
+    pose_failures: &mut usize,
+) -> anyhow::Result<(LoadedFrame, LoadedFrame, LoadedFrame)> {
+    let load = |i: usize| -> anyhow::Result<LoadedFrame> {
+        Ok(load_frame(&seq.frames[i], Some(size), Fit::Stretch)?)
+    };
+    let (rf, mut sf, tf) = (load(t.reference)?, load(t.source)?, load(t.target)?);
+    if a.poses == crate::options::PoseArg::Estimated {
+        match estimated_source(&seq.frames[t.reference], &seq.frames[t.source], &rf, &sf) {
+            Ok(cam) => sf.camera = cam,
+            Err(e) => {
+                *pose_failures += 1;
+                eprintln!(
+                    "warning: triplet {ti}: no estimated pose ({}); it keeps the true one",
+                    mhi_data::sanitize::for_terminal(&format!("{e:#}"))
+                );
+            }
+        }
+    }
+    Ok((rf, sf, tf))
+}
+
+/// report.json, pruning.json and report.csv; returns the pruned-against-exact rows.
+fn write_data_files(
+    a: &EvalArgs,
+    doc: &ReportJson<'_>,
+    pruning: &[PruneMeasure],
+    boot: &Bootstrap,
+) -> anyhow::Result<Vec<pruning::PruneRow>> {
+    let json = serde_json::to_vec_pretty(doc)?;
+    mhi_data::write_atomic(&a.out.join("report.json"), &json)?;
+    let prune_rows = prune_rows(pruning, boot);
+    mhi_data::write_atomic(
+        &a.out.join("pruning.json"),
+        &serde_json::to_vec_pretty(&serde_json::json!({
+            "budget": a.prune().budget, "budget_levels": a.budget, "rows": prune_rows,
+            "measurements": pruning,
+        }))?,
+    )?;
+    mhi_data::write_atomic(&a.out.join("report.csv"), report::csv(doc.rows).as_bytes())?;
+    Ok(prune_rows)
 }
 
 /// Refuse options that cannot be measured honestly, before any work.

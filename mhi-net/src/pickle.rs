@@ -238,155 +238,180 @@ fn measure(v: &Value, work: &mut u64) -> Result<usize, String> {
     Ok(deepest)
 }
 
-fn run(bytes: &[u8]) -> Result<Value, (usize, String)> {
-    let mut r = Reader { b: bytes, pos: 0 };
-    let mut stack: Vec<Value> = Vec::new();
-    let mut memo: BTreeMap<u32, Value> = BTreeMap::new();
-    let mut work = 0_u64;
-    loop {
-        let at = r.pos;
-        let op = r.u8().map_err(|e| (at, e))?;
-        let res: Result<Option<Value>, String> = (|| {
+/// The pickle machine: the bytes, its stack and memo, and the work done so far.
+struct Machine<'a> {
+    r: Reader<'a>,
+    stack: Vec<Value>,
+    memo: BTreeMap<u32, Value>,
+    work: u64,
+}
+
+impl Machine<'_> {
+    /// An opcode that pushes a literal or reads past a header; `false` for any other.
+    fn literal(&mut self, op: u8) -> Result<bool, String> {
+        match op {
+            0x80 => {
+                self.r.u8()?; // PROTO
+            }
+            0x95 => {
+                self.r.u64()?; // FRAME
+            }
+            b'}' => self.stack.push(Value::Dict(Vec::new())),
+            b']' => self.stack.push(Value::List(Vec::new())),
+            b')' => self.stack.push(Value::Tuple(Vec::new())),
+            b'(' => self.stack.push(Value::Mark),
+            b'N' => self.stack.push(Value::None),
+            0x88 => self.stack.push(Value::Bool(true)),
+            0x89 => self.stack.push(Value::Bool(false)),
+            b'J' => {
+                let v = self.r.u32()? as i32;
+                self.stack.push(Value::Int(i64::from(v)));
+            }
+            b'K' => {
+                let v = self.r.u8()?;
+                self.stack.push(Value::Int(i64::from(v)));
+            }
+            b'M' => {
+                let v = self.r.u16()?;
+                self.stack.push(Value::Int(i64::from(v)));
+            }
+            b'G' => {
+                let v = self.r.u64()?;
+                self.stack
+                    .push(Value::Float(f64::from_bits(u64::from_be(v))));
+            }
+            b'X' => {
+                let n = self.r.u32()? as usize;
+                let s = self.r.string(n)?;
+                self.stack.push(Value::Str(s));
+            }
+            0x8c => {
+                let n = self.r.u8()? as usize;
+                let s = self.r.string(n)?;
+                self.stack.push(Value::Str(s));
+            }
+            b'B' => {
+                let n = self.r.u32()? as usize;
+                self.stack.push(Value::Bytes(self.r.take(n)?.to_vec()));
+            }
+            b'C' => {
+                let n = self.r.u8()? as usize;
+                self.stack.push(Value::Bytes(self.r.take(n)?.to_vec()));
+            }
+            b'c' => {
+                let m = self.r.line()?;
+                let n = self.r.line()?;
+                self.stack.push(Value::Global(m, n));
+            }
+            _ => return Ok(false),
+        }
+        Ok(true)
+    }
+
+    /// An opcode of the memo (PUT, MEMOIZE, GET); `false` for any other.
+    fn memo_op(&mut self, op: u8) -> Result<bool, String> {
+        match op {
+            b'q' => {
+                let i = self.r.u8()?;
+                self.memo.insert(
+                    u32::from(i),
+                    self.stack.last().ok_or("empty stack")?.clone(),
+                );
+            }
+            b'r' => {
+                let i = self.r.u32()?;
+                self.memo
+                    .insert(i, self.stack.last().ok_or("empty stack")?.clone());
+            }
+            0x94 => {
+                let i = self.memo.len() as u32;
+                self.memo
+                    .insert(i, self.stack.last().ok_or("empty stack")?.clone());
+            }
+            b'h' => {
+                let i = self.r.u8()?;
+                let v = self.memo.get(&u32::from(i)).ok_or("memo key missing")?;
+                measure(v, &mut self.work)?;
+                self.stack.push(v.clone());
+            }
+            b'j' => {
+                let i = self.r.u32()?;
+                let v = self.memo.get(&i).ok_or("memo key missing")?;
+                measure(v, &mut self.work)?;
+                self.stack.push(v.clone());
+            }
+            _ => return Ok(false),
+        }
+        Ok(true)
+    }
+
+    /// Run one opcode: `Some` with the result at STOP.
+    fn step(&mut self, op: u8) -> Result<Option<Value>, String> {
+        if !self.literal(op)? && !self.memo_op(op)? {
             match op {
-                0x80 => {
-                    r.u8()?; // PROTO
-                }
-                0x95 => {
-                    r.u64()?; // FRAME
-                }
-                b'.' => return Ok(Some(pop(&mut stack)?)), // STOP
-                b'}' => stack.push(Value::Dict(Vec::new())),
-                b']' => stack.push(Value::List(Vec::new())),
-                b')' => stack.push(Value::Tuple(Vec::new())),
-                b'(' => stack.push(Value::Mark),
-                b'N' => stack.push(Value::None),
-                0x88 => stack.push(Value::Bool(true)),
-                0x89 => stack.push(Value::Bool(false)),
-                b'J' => {
-                    let v = r.u32()? as i32;
-                    stack.push(Value::Int(i64::from(v)));
-                }
-                b'K' => {
-                    let v = r.u8()?;
-                    stack.push(Value::Int(i64::from(v)));
-                }
-                b'M' => {
-                    let v = r.u16()?;
-                    stack.push(Value::Int(i64::from(v)));
-                }
-                b'G' => {
-                    let v = r.u64()?;
-                    stack.push(Value::Float(f64::from_bits(u64::from_be(v))));
-                }
-                b'X' => {
-                    let n = r.u32()? as usize;
-                    let s = r.string(n)?;
-                    stack.push(Value::Str(s));
-                }
-                0x8c => {
-                    let n = r.u8()? as usize;
-                    let s = r.string(n)?;
-                    stack.push(Value::Str(s));
-                }
-                b'B' => {
-                    let n = r.u32()? as usize;
-                    stack.push(Value::Bytes(r.take(n)?.to_vec()));
-                }
-                b'C' => {
-                    let n = r.u8()? as usize;
-                    stack.push(Value::Bytes(r.take(n)?.to_vec()));
-                }
-                b'c' => {
-                    let m = r.line()?;
-                    let n = r.line()?;
-                    stack.push(Value::Global(m, n));
-                }
+                b'.' => return Ok(Some(pop(&mut self.stack)?)), // STOP
                 0x93 => {
-                    let n = pop(&mut stack)?;
-                    let m = pop(&mut stack)?;
+                    let n = pop(&mut self.stack)?;
+                    let m = pop(&mut self.stack)?;
                     match (m, n) {
-                        (Value::Str(m), Value::Str(n)) => stack.push(Value::Global(m, n)),
+                        (Value::Str(m), Value::Str(n)) => self.stack.push(Value::Global(m, n)),
                         _ => return Err("STACK_GLOBAL needs two strings".into()),
                     }
                 }
-                b'q' => {
-                    let i = r.u8()?;
-                    memo.insert(u32::from(i), stack.last().ok_or("empty stack")?.clone());
-                }
-                b'r' => {
-                    let i = r.u32()?;
-                    memo.insert(i, stack.last().ok_or("empty stack")?.clone());
-                }
-                0x94 => {
-                    let i = memo.len() as u32;
-                    memo.insert(i, stack.last().ok_or("empty stack")?.clone());
-                }
-                b'h' => {
-                    let i = r.u8()?;
-                    let v = memo.get(&u32::from(i)).ok_or("memo key missing")?;
-                    measure(v, &mut work)?;
-                    stack.push(v.clone());
-                }
-                b'j' => {
-                    let i = r.u32()?;
-                    let v = memo.get(&i).ok_or("memo key missing")?;
-                    measure(v, &mut work)?;
-                    stack.push(v.clone());
-                }
                 b't' => {
-                    let items = pop_mark(&mut stack)?;
-                    stack.push(Value::Tuple(items));
+                    let items = pop_mark(&mut self.stack)?;
+                    self.stack.push(Value::Tuple(items));
                 }
                 0x85 => {
-                    let a = pop(&mut stack)?;
-                    stack.push(Value::Tuple(vec![a]));
+                    let a = pop(&mut self.stack)?;
+                    self.stack.push(Value::Tuple(vec![a]));
                 }
                 0x86 => {
-                    let b = pop(&mut stack)?;
-                    let a = pop(&mut stack)?;
-                    stack.push(Value::Tuple(vec![a, b]));
+                    let b = pop(&mut self.stack)?;
+                    let a = pop(&mut self.stack)?;
+                    self.stack.push(Value::Tuple(vec![a, b]));
                 }
                 0x87 => {
-                    let c = pop(&mut stack)?;
-                    let b = pop(&mut stack)?;
-                    let a = pop(&mut stack)?;
-                    stack.push(Value::Tuple(vec![a, b, c]));
+                    let c = pop(&mut self.stack)?;
+                    let b = pop(&mut self.stack)?;
+                    let a = pop(&mut self.stack)?;
+                    self.stack.push(Value::Tuple(vec![a, b, c]));
                 }
                 b'R' => {
-                    let args = pop(&mut stack)?;
-                    let f = pop(&mut stack)?;
-                    stack.push(Value::Reduce(Box::new(f), Box::new(args)));
+                    let args = pop(&mut self.stack)?;
+                    let f = pop(&mut self.stack)?;
+                    self.stack.push(Value::Reduce(Box::new(f), Box::new(args)));
                 }
                 b'b' => {
-                    let state = pop(&mut stack)?;
-                    let obj = pop(&mut stack)?;
+                    let state = pop(&mut self.stack)?;
+                    let obj = pop(&mut self.stack)?;
                     let built = build(obj, state)?;
                     // Python's memo holds references, so BUILD changes the memoised dtype too:
                     // replace the memo's unbuilt copies of this dtype.
                     if let Value::Dtype(d) = &built {
-                        for m in memo.values_mut() {
+                        for m in self.memo.values_mut() {
                             if unbuilt_dtype_kind(m).is_some_and(|k| d.ends_with(&k)) {
                                 *m = built.clone();
                             }
                         }
                     }
-                    stack.push(built);
+                    self.stack.push(built);
                 }
                 b's' => {
-                    let v = pop(&mut stack)?;
-                    let k = pop(&mut stack)?;
-                    match stack.last_mut() {
+                    let v = pop(&mut self.stack)?;
+                    let k = pop(&mut self.stack)?;
+                    match self.stack.last_mut() {
                         Some(Value::Dict(d)) => d.push((k, v)),
                         _ => return Err("SETITEM without a dict".into()),
                     }
                 }
                 b'u' => {
-                    let items = pop_mark(&mut stack)?;
+                    let items = pop_mark(&mut self.stack)?;
                     if items.len() % 2 != 0 {
                         return Err("SETITEMS with an odd number of items".into());
                     }
                     let mut it = items.into_iter();
-                    match stack.last_mut() {
+                    match self.stack.last_mut() {
                         Some(Value::Dict(d)) => {
                             while let (Some(k), Some(v)) = (it.next(), it.next()) {
                                 d.push((k, v));
@@ -396,28 +421,42 @@ fn run(bytes: &[u8]) -> Result<Value, (usize, String)> {
                     }
                 }
                 b'a' => {
-                    let v = pop(&mut stack)?;
-                    match stack.last_mut() {
+                    let v = pop(&mut self.stack)?;
+                    match self.stack.last_mut() {
                         Some(Value::List(l)) => l.push(v),
                         _ => return Err("APPEND without a list".into()),
                     }
                 }
                 b'e' => {
-                    let items = pop_mark(&mut stack)?;
-                    match stack.last_mut() {
+                    let items = pop_mark(&mut self.stack)?;
+                    match self.stack.last_mut() {
                         Some(Value::List(l)) => l.extend(items),
                         _ => return Err("APPENDS without a list".into()),
                     }
                 }
+
                 other => return Err(format!("unsupported pickle opcode 0x{other:02x}")),
             }
-            // Whatever the opcode built or grew is on top: no deeper than allowed.
-            if let Some(top) = stack.last() {
-                measure(top, &mut work)?;
-            }
-            Ok(None)
-        })();
-        match res {
+        }
+        // Whatever the opcode built or grew is on top: no deeper than allowed.
+        if let Some(top) = self.stack.last() {
+            measure(top, &mut self.work)?;
+        }
+        Ok(None)
+    }
+}
+
+fn run(bytes: &[u8]) -> Result<Value, (usize, String)> {
+    let mut m = Machine {
+        r: Reader { b: bytes, pos: 0 },
+        stack: Vec::new(),
+        memo: BTreeMap::new(),
+        work: 0,
+    };
+    loop {
+        let at = m.r.pos;
+        let op = m.r.u8().map_err(|e| (at, e))?;
+        match m.step(op) {
             Ok(Some(v)) => return Ok(v),
             Ok(None) => {}
             Err(e) => return Err((at, e)),

@@ -27,6 +27,25 @@ fn xtask(args: &[&str]) {
     );
 }
 
+/// The options of `render`/`export` that name the scene's photos and cameras and the sweep.
+fn scene_args<'a>(rf: &'a str, sf: &'a str, cams: &'a std::path::Path) -> Vec<&'a str> {
+    vec![
+        "--ref",
+        rf,
+        "--src",
+        sf,
+        "--src-row",
+        "4",
+        "--cameras",
+        cams.to_str().unwrap(),
+        "--sweep",
+        "--planes",
+        "12",
+        "--size",
+        "128x96",
+    ]
+}
+
 /// A synthetic sequence in `dir` and a camera file of six of its rows: reference (frame 0),
 /// targets (frames 1, 2, 4), source (frame 3). Returns the two photos and the file.
 fn scene(dir: &std::path::Path) -> (String, String, std::path::PathBuf) {
@@ -75,29 +94,15 @@ fn the_browser_viewer_agrees_with_the_cpu_renderer() {
     };
     let d = tempfile::tempdir().unwrap();
     let (rf, sf, cams) = scene(d.path());
-    let common = [
-        "--ref",
-        &rf,
-        "--src",
-        &sf,
-        "--src-row",
-        "4",
-        "--cameras",
-        cams.to_str().unwrap(),
-        "--sweep",
-        "--planes",
-        "12",
-        "--size",
-        "128x96",
-    ];
+    let common = scene_args(&rf, &sf, &cams);
     let viewer = d.path().join("viewer");
     let cpu = d.path().join("cpu");
     let mut args = vec!["export"];
-    args.extend(common);
+    args.extend(common.iter().copied());
     args.extend(["--out", viewer.to_str().unwrap()]);
     xtask(&args);
     let mut args = vec!["render"];
-    args.extend(common);
+    args.extend(common.iter().copied());
     args.extend(["--exact", "--frames", "0", "--out", cpu.to_str().unwrap()]);
     xtask(&args);
     let manifest: serde_json::Value =
@@ -165,16 +170,10 @@ fn the_browser_viewer_agrees_with_the_cpu_renderer() {
     );
 }
 
+/// PSNR of two 8-bit images, through `mhi_eval::psnr`.
 fn psnr(a: &image::RgbImage, b: &image::RgbImage) -> f64 {
-    assert_eq!(a.dimensions(), b.dimensions());
-    let mse = a
-        .as_raw()
-        .iter()
-        .zip(b.as_raw())
-        .map(|(p, q)| (f64::from(*p) - f64::from(*q)).powi(2))
-        .sum::<f64>()
-        / a.as_raw().len() as f64;
-    10.0 * (255.0_f64.powi(2) / mse.max(1e-12)).log10()
+    let f = |img: &image::RgbImage| image::DynamicImage::ImageRgb8(img.clone()).into_rgb32f();
+    mhi_eval::psnr(&f(a), &f(b)).unwrap()
 }
 
 /// The path's video holds the views the PNGs hold (camera rows 2 and 3 as the path), frame for
@@ -189,21 +188,9 @@ fn the_video_decodes_to_the_rendered_views_and_plays_in_the_browser() {
     let lines: Vec<&str> = text.lines().collect();
     let path_file = d.path().join("path.txt");
     std::fs::write(&path_file, [lines[0], lines[2], lines[3]].join("\n")).unwrap();
-    xtask(&[
-        "render",
-        "--ref",
-        &rf,
-        "--src",
-        &sf,
-        "--src-row",
-        "4",
-        "--cameras",
-        cams.to_str().unwrap(),
-        "--sweep",
-        "--planes",
-        "12",
-        "--size",
-        "128x96",
+    let mut args = vec!["render"];
+    args.extend(scene_args(&rf, &sf, &cams));
+    args.extend([
         "--exact",
         "--path",
         "file",
@@ -216,11 +203,7 @@ fn the_video_decodes_to_the_rendered_views_and_plays_in_the_browser() {
         "--export",
         viewer.to_str().unwrap(),
     ]);
-    if let Ok(keep) = std::env::var("MHI_KEEP") {
-        let _ = std::process::Command::new("cp")
-            .args(["-r", out.to_str().unwrap(), &keep])
-            .status();
-    }
+    xtask(&args);
     let bytes = std::fs::read(out.join("video.mp4")).unwrap();
     let video = mhi_video::decode_mp4(&bytes).unwrap();
     assert_eq!(

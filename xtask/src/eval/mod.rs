@@ -191,13 +191,11 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
     let models = load_models(a, &cpu)?;
     let (sweep_grid, oracle_grid, sweep_config, sizes) = plan_grids_and_sizes(a, &ds, &models)?;
     let weights_dir = crate::common::cache_dir(a.cache.as_deref()).join("weights");
-    let lpips_net = match Backbone::load(&weights_dir, Net::Alex, &cpu) {
-        Ok(b) => Some(b),
-        Err(e) => {
+    let lpips_net = Backbone::load(&weights_dir, Net::Alex, &cpu)
+        .inspect_err(|e| {
             eprintln!("note: LPIPS not computed ({e}; `cargo xtask weights` fetches them)");
-            None
-        }
-    };
+        })
+        .ok();
     let ctx = Ctx {
         a,
         models: &models,
@@ -224,27 +222,10 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
         }
         let (rf, sf, tf) = load_triplet(a, seq, t, size, ti, &mut pose_failures)?;
         if ti == 0 {
-            // Warm-up: the first view of every method pays for allocations and lazy
-            // initialisation that a user rendering many views pays once.
-            if ctx.run_methods(&rf, &sf, &tf, seq)?.is_empty() && a.renders.is_empty() {
-                bail!(
-                    "none of --methods {:?} applies here: learned, soft, hard and avg need a --run with N > 1, mpi a --run with N = 1, oracle synthetic scenes",
-                    a.methods
-                );
-            }
+            warm_up(&ctx, (&rf, &sf, &tf), seq)?;
             pb.inc(1);
         }
-        let mut outputs = ctx.run_methods(&rf, &sf, &tf, seq)?;
-        for (name, dir) in &a.renders {
-            outputs.push(Output {
-                method: name.clone(),
-                normals: 0,
-                planes: 0,
-                image: load_render(&dir.join(render_file_name(seq, t)), size)?,
-                times: Times::default(),
-                exact: Vec::new(),
-            });
-        }
+        let outputs = outputs_of(&ctx, (&rf, &sf, &tf), seq, t, size)?;
         let gt = &tf.image;
         let covered = mhi_eval::covered_mask(&rf.camera, &tf.camera, a.range.far);
         let lpips = |x: &Rgb32FImage, y: &Rgb32FImage| -> Result<f64, MethodError> {
@@ -475,6 +456,44 @@ fn write_data_files(
     )?;
     mhi_data::write_atomic(&a.out.join("report.csv"), report::csv(doc.rows).as_bytes())?;
     Ok(prune_rows)
+}
+
+/// Warm-up: the first view of every method pays for allocations and lazy initialisation that a
+/// user rendering many views pays once. Refuses a set of methods of which none applies.
+fn warm_up(
+    ctx: &Ctx<'_>,
+    (rf, sf, tf): (&LoadedFrame, &LoadedFrame, &LoadedFrame),
+    seq: &mhi_data::Sequence,
+) -> anyhow::Result<()> {
+    if ctx.run_methods(rf, sf, tf, seq)?.is_empty() && ctx.a.renders.is_empty() {
+        bail!(
+            "none of --methods {:?} applies here: learned, soft, hard and avg need a --run with N > 1, mpi a --run with N = 1, oracle synthetic scenes",
+            ctx.a.methods
+        );
+    }
+    Ok(())
+}
+
+/// Every method's view of a triplet, and the renders --renders scores from files.
+fn outputs_of(
+    ctx: &Ctx<'_>,
+    (rf, sf, tf): (&LoadedFrame, &LoadedFrame, &LoadedFrame),
+    seq: &mhi_data::Sequence,
+    t: &mhi_data::Triplet,
+    size: (u32, u32),
+) -> anyhow::Result<Vec<Output>> {
+    let mut outputs = ctx.run_methods(rf, sf, tf, seq)?;
+    for (name, dir) in &ctx.a.renders {
+        outputs.push(Output {
+            method: name.clone(),
+            normals: 0,
+            planes: 0,
+            image: load_render(&dir.join(render_file_name(seq, t)), size)?,
+            times: Times::default(),
+            exact: Vec::new(),
+        });
+    }
+    Ok(outputs)
 }
 
 /// Refuse options that cannot be measured honestly, before any work.

@@ -546,6 +546,30 @@ fn other_bench(a: &BenchArgs) -> anyhow::Result<bool> {
     Ok(false)
 }
 
+/// One line per real-frame MHI: exact against pruned, and what was left out.
+fn print_real_pruning(real: &[RealPruning]) {
+    for r in real {
+        println!(
+            "  {} MHI of {} at {}x{}: exact {:.1} ms, pruned {:.1} ms (paired {:.2}x, {:.0} % interval of the median {:.2}–{:.2}x; {} layers and {} normals left out everywhere, {:.0} % of the tile-layer pairs and {:.0} % of the samples composited, bound {:.5})",
+            r.mhi,
+            r.scene,
+            r.size.0,
+            r.size.1,
+            r.exact_ms,
+            r.pruned_ms,
+            r.speedup,
+            100.0 * r.speedup_coverage,
+            r.speedup_interval[0],
+            r.speedup_interval[1],
+            r.layers_pruned,
+            r.normals_pruned,
+            100.0 * r.composited,
+            100.0 * r.samples,
+            r.bound
+        );
+    }
+}
+
 /// `cargo xtask bench`.
 pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
     if a.runs == 0 {
@@ -600,26 +624,7 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
     println!(
         "  with the default render plan (pruning):    {pruned_ms:8.1} ms (random alphas: only the transmittance stop applies)"
     );
-    for r in &real {
-        println!(
-            "  {} MHI of {} at {}x{}: exact {:.1} ms, pruned {:.1} ms (paired {:.2}x, {:.0} % interval of the median {:.2}–{:.2}x; {} layers and {} normals left out everywhere, {:.0} % of the tile-layer pairs and {:.0} % of the samples composited, bound {:.5})",
-            r.mhi,
-            r.scene,
-            r.size.0,
-            r.size.1,
-            r.exact_ms,
-            r.pruned_ms,
-            r.speedup,
-            100.0 * r.speedup_coverage,
-            r.speedup_interval[0],
-            r.speedup_interval[1],
-            r.layers_pruned,
-            r.normals_pruned,
-            100.0 * r.composited,
-            100.0 * r.samples,
-            r.bound
-        );
-    }
+    print_real_pruning(&real);
     println!("  per-layer colour (the peer's layout):      {per_layer_ms:8.1} ms");
     println!(
         "  memory floor: {:.1} MB read once at {:.1} GB/s = {floor_ms:.1} ms ({:.1}x above it)",

@@ -194,6 +194,9 @@ impl TrainConfig {
                 }
                 if let Some(m) = at {
                     m.entry("residual").or_insert(serde_json::json!(false));
+                    if part.len() == 1 {
+                        m.entry("disagreement").or_insert(serde_json::json!(false));
+                    }
                     if part.len() == 2 {
                         m.entry("halve_planes").or_insert(serde_json::json!(false));
                         m.entry("norm_groups").or_insert(serde_json::json!(0));
@@ -409,9 +412,17 @@ impl TrainConfig {
     /// networks' configs, the grid, the prior), stored with every checkpoint: weights of another
     /// model whose tensors happen to have the same shapes are refused instead of loaded.
     pub fn fingerprint(&self) -> String {
+        // A blend option added after runs were trained is left out while off, so that their
+        // checkpoints keep the fingerprint they were written with.
+        let mut blend = serde_json::to_value(&self.blend).unwrap_or_default();
+        if let Some(o) = blend.as_object_mut()
+            && o.get("disagreement") == Some(&serde_json::Value::Bool(false))
+        {
+            o.remove("disagreement");
+        }
         let v = serde_json::json!([
             self.stage1,
-            self.blend,
+            blend,
             self.planes,
             self.near,
             self.far,

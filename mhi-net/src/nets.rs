@@ -523,6 +523,13 @@ pub struct BlendNetConfig {
     /// as the heuristic does.
     #[config(default = false)]
     pub residual: bool,
+    /// Also show the network where the normals disagree: per normal, how far its multi-normal
+    /// image is from their mean at each pixel (summed over RGB), N more input channels. The
+    /// paper's network sees only the images and their weights; the best normal per pixel is
+    /// worth far more than Soft on unseen clips (#60), and which one is best shows where they
+    /// differ.
+    #[config(default = false)]
+    pub disagreement: bool,
 }
 
 /// Convolution, layer normalisation over channels, ReLU (2D).
@@ -560,6 +567,7 @@ pub struct BlendNet {
     dec: Vec<Block2d>,
     head: Conv2d,
     residual: bool,
+    disagreement: bool,
 }
 
 impl BlendNetConfig {
@@ -568,7 +576,12 @@ impl BlendNetConfig {
         let w = self.width;
         let ch = |l: usize| w << l;
         BlendNet {
-            stem: Block2d::new(4 * self.normals, w, 1, device),
+            stem: Block2d::new(
+                if self.disagreement { 5 } else { 4 } * self.normals,
+                w,
+                1,
+                device,
+            ),
             down: (0..self.levels)
                 .map(|l| Block2d::new(ch(l), ch(l + 1), 2, device))
                 .collect(),
@@ -587,6 +600,7 @@ impl BlendNetConfig {
                 Conv2dConfig::new([w, self.normals], [1, 1]).init(device),
             ),
             residual: self.residual,
+            disagreement: self.disagreement,
         }
     }
 }
@@ -603,6 +617,15 @@ impl BlendNet {
         let prior = self
             .residual
             .then(|| x.clone().narrow(1, 3 * n, n).clamp_min(SOFT_FLOOR).log());
+        let x = if self.disagreement {
+            let [b, _, h, w] = x.dims();
+            let images = x.clone().narrow(1, 0, 3 * n).reshape([b, n, 3, h, w]);
+            let mean = images.clone().mean_dim(1);
+            let apart = (images - mean).abs().sum_dim(2).reshape([b, n, h, w]);
+            Tensor::cat(vec![x, apart], 1)
+        } else {
+            x
+        };
         let mut x = self.stem.forward(x);
         let mut skips = Vec::with_capacity(self.down.len());
         for down in &self.down {
@@ -777,6 +800,57 @@ mod unet_tests {
                 );
             }
         }
+    }
+
+    /// With `disagreement`, the blending network reads N more channels (each normal's distance
+    /// from the mean image) and, untrained with its residual head, still blends exactly as the
+    /// heuristic weights it is given; the new channels are zero only where the images agree.
+    #[test]
+    fn the_disagreement_inputs_start_at_the_heuristic_and_show_where_normals_differ() {
+        use burn::tensor::Device as D;
+        let device = D::flex();
+        let n = 3;
+        let net = BlendNetConfig::new(n)
+            .with_width(4)
+            .with_levels(1)
+            .with_residual(true)
+            .with_disagreement(true)
+            .init(&device);
+        let images: Tensor<4> =
+            Tensor::random([1, 3 * n, 8, 8], Distribution::Uniform(0.0, 1.0), &device);
+        let w: Tensor<4> = Tensor::random([1, n, 8, 8], Distribution::Uniform(0.1, 1.0), &device);
+        let w = w.clone() / w.sum_dim(1);
+        let out = net.forward(Tensor::cat(vec![images.clone(), w.clone()], 1));
+        assert_eq!(out.dims(), [1, n, 8, 8]);
+        let diff: f32 = (out - w.clone()).abs().max().into_scalar();
+        assert!(
+            diff < 1e-5,
+            "untrained residual blend moved the weights by {diff}"
+        );
+        // Where all normals show the same image, the extra channels are zero; where one differs,
+        // its channel is not: the network sees the difference.
+        let [b, _, h, wd] = images.dims();
+        let same = images.clone().narrow(1, 0, 3).repeat_dim(1, n);
+        let apart = |x: Tensor<4>| {
+            let imgs = x.reshape([b, n, 3, h, wd]);
+            let mean = imgs.clone().mean_dim(1);
+            (imgs - mean).abs().sum_dim(2).reshape([b, n, h, wd])
+        };
+        let zero: f32 = apart(same).abs().max().into_scalar();
+        let some: f32 = apart(images).abs().max().into_scalar();
+        assert!(zero < 1e-6 && some > 0.1, "{zero} {some}");
+        // A config.json written before the option reads with it off, and keeps its fingerprint.
+        let mut v = serde_json::to_value(crate::TrainConfig::for_normals(5)).unwrap();
+        let before = crate::TrainConfig::for_normals(5).fingerprint();
+        v["blend"].as_object_mut().unwrap().remove("disagreement");
+        let old =
+            crate::TrainConfig::from_json(&v.to_string(), std::path::Path::new("config.json"))
+                .unwrap();
+        assert!(!old.blend.disagreement);
+        assert_eq!(old.fingerprint(), before);
+        let mut on = crate::TrainConfig::for_normals(5);
+        on.blend.disagreement = true;
+        assert_ne!(on.fingerprint(), before);
     }
 
     /// The group norm equals PyTorch's `GroupNorm` formula computed in f64 (biased variance

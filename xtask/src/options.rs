@@ -143,6 +143,10 @@ pub struct TrainArgs {
     /// Channels of the first level of the blending U-Net.
     #[arg(long, default_value_t = defaults().blend.width)]
     pub blend_width: usize,
+    /// The blending network also sees where the normals disagree: each multi-normal image's
+    /// distance from their mean, per pixel (N more input channels).
+    #[arg(long)]
+    pub blend_disagreement: bool,
     /// Give every normal its own stage-1 network instead of sharing one.
     #[arg(long)]
     pub separate_weights: bool,

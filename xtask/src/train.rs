@@ -74,6 +74,7 @@ fn new_config(a: &TrainArgs, sources: Vec<DataSource>) -> anyhow::Result<TrainCo
     }
     c.stage1.scale = a.stage1_scale as usize;
     c.blend.width = a.blend_width;
+    c.blend.disagreement = a.blend_disagreement;
     c.width = a.size.0;
     c.height = a.size.1;
     c.planes = a.planes;

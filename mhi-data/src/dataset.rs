@@ -275,6 +275,11 @@ impl Dataset {
         Ok(out)
     }
 
+    /// The sequence named `name`, if the dataset has it.
+    pub fn sequence(&self, name: &str) -> Option<&Sequence> {
+        self.sequences.iter().find(|s| s.name == name)
+    }
+
     /// Keep only the named sequences (`keep = true`) or all but them (`keep = false`). Every
     /// name must be a sequence of the dataset: a typo is an error listing the names there are.
     ///

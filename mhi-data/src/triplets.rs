@@ -427,7 +427,7 @@ impl TripletIndex {
     /// Check that every triplet refers to a sequence and frames of `dataset`.
     pub fn validate(&self, dataset: &Dataset, index_path: &Path) -> Result<()> {
         for (i, t) in self.triplets.iter().enumerate() {
-            let seq = dataset.sequences.iter().find(|s| s.name == t.sequence);
+            let seq = dataset.sequence(&t.sequence);
             let ok = seq.is_some_and(|s| {
                 let n = s.frames.len();
                 t.reference < n && t.source < n && t.target < n

@@ -197,9 +197,7 @@ pub fn evaluate(
     let mut out = Vec::new();
     for (ti, t) in index.triplets.iter().enumerate() {
         let seq = data
-            .sequences
-            .iter()
-            .find(|s| s.name == t.sequence)
+            .sequence(&t.sequence)
             .ok_or_else(|| mhi_data::Error::Dataset {
                 path: data.dir.clone(),
                 fault: format!(

@@ -36,7 +36,7 @@ use openh264::formats::{YUVBuffer, YUVSource};
 /// tell its own videos from a user's.
 pub const TITLE: &str = "MHI view synthesis";
 
-/// The largest side H.264 level 5.2 allows at these sizes (and far beyond a render's).
+/// The largest side a video may have: far beyond a render's, and within what browsers decode.
 pub const MAX_SIDE: u32 = 4096;
 
 /// Why a video could not be written or read.
@@ -141,7 +141,9 @@ impl Mp4Encoder {
         }
         // Quality first: a fixed QP range near-transparent for rendered views (decoded frames
         // stay above 35 dB PSNR of the frames given; see the tests), every 2 s an IDR frame so a
-        // player can seek.
+        // player can seek. Frame skipping is on only because quality mode without it prints a
+        // warning on every video; the bitrate ceiling is far above what QP 8 needs, and a
+        // skipped frame would come out empty, which `push` refuses.
         let config = EncoderConfig::new()
             .rate_control_mode(RateControlMode::Quality)
             .bitrate(BitRate::from_bps(

@@ -228,8 +228,7 @@ pub fn plan(
 /// The depth, along the reference's optical axis, of the nearest fronto-parallel-most layer that
 /// holds something (largest alpha above 1/255).
 fn nearest_content(mhi: &Mhi) -> Option<f64> {
-    let normals = mhi.normals().normals();
-    let i = (0..normals.len()).max_by(|a, b| normals[*a].z.total_cmp(&normals[*b].z))?;
+    let i = crate::views::fronto_normal(mhi)?;
     (0..mhi.d())
         .filter(|&j| mhi.layer_max_alpha(i, j) > 1.0 / 255.0)
         .map(|j| mhi.depths()[j])

@@ -230,9 +230,7 @@ fn oracle_into(a: &OracleArgs) -> anyhow::Result<()> {
         .with_context(|| format!("cannot create {}", a.out.display()))?;
     for (ti, t) in index.triplets.iter().enumerate() {
         let seq = ds
-            .sequences
-            .iter()
-            .find(|s| s.name == t.sequence)
+            .sequence(&t.sequence)
             .context("triplet sequence vanished")?;
         let scene_path = ds.dir.join(&seq.name).join("scene.json");
         let scene = load_scene(&scene_path)?;

@@ -24,12 +24,17 @@ pub fn view(
 
 pub use mhi_eval::protocol::clipped;
 
+/// The index of the MHI's normal closest to the reference's optical axis (largest z).
+pub fn fronto_normal(mhi: &Mhi) -> Option<usize> {
+    let normals = mhi.normals().normals();
+    (0..normals.len()).max_by(|a, b| normals[*a].z.total_cmp(&normals[*b].z))
+}
+
 /// The median depth the MHI sees from its reference camera: the median over pixels of the
 /// expected disparity through the normal closest to the optical axis, inverted. `None` when
 /// nothing is in front (every disparity zero).
 pub fn median_depth(mhi: &Mhi) -> Option<f64> {
-    let normals = mhi.normals().normals();
-    let i = (0..normals.len()).max_by(|a, b| normals[*a].z.total_cmp(&normals[*b].z))?;
+    let i = fronto_normal(mhi)?;
     let mut disp: Vec<f32> = mhi
         .expected_disparity(i)
         .into_iter()

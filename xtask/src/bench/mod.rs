@@ -195,11 +195,7 @@ fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<
         .triplets
         .first()
         .with_context(|| format!("--data {}: no test triplet", a.data.display()))?;
-    let seq = ds
-        .sequences
-        .iter()
-        .find(|s| s.name == t.sequence)
-        .context("triplet sequence")?;
+    let seq = ds.sequence(&t.sequence).context("triplet sequence")?;
     let model = match &a.run {
         Some(run) => Some(
             mhi_net::Model::load(run, burn::tensor::Device::flex())

@@ -212,9 +212,7 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
     let mut pose_failures = 0usize;
     for (ti, t) in index.triplets.iter().enumerate() {
         let seq = ds
-            .sequences
-            .iter()
-            .find(|s| s.name == t.sequence)
+            .sequence(&t.sequence)
             .context("triplet sequence vanished")?;
         let size = sizes[&seq.name];
         if !sizes_used.contains(&size) {
@@ -783,9 +781,7 @@ fn check_renders(a: &EvalArgs, ds: &Dataset, index: &TripletIndex) -> anyhow::Re
         let mut missing = Vec::new();
         for t in &index.triplets {
             let seq = ds
-                .sequences
-                .iter()
-                .find(|s| s.name == t.sequence)
+                .sequence(&t.sequence)
                 .context("triplet sequence vanished")?;
             let f = dir.join(render_file_name(seq, t));
             if !f.is_file() {

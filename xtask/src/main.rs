@@ -7,7 +7,6 @@ mod data;
 mod demo;
 mod eval;
 mod experiments;
-mod export;
 mod metrics;
 mod models;
 mod options;

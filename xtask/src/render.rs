@@ -491,7 +491,7 @@ fn write_viewer_out(
     if let Some(bytes) = plan_json {
         mhi_data::write_atomic(&dir.join("plan.json"), bytes)?;
     }
-    crate::export::write_viewer(
+    mhi_viewer::write_viewer(
         dir,
         mhi,
         plan,
@@ -499,7 +499,8 @@ fn write_viewer_out(
         &inputs,
         &names,
         video.map(|v| &v.bytes[..]),
-    )
+    )?;
+    Ok(())
 }
 
 /// Put a --video file in place and say what was written where, with the bound the render kept.

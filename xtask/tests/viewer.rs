@@ -7,11 +7,11 @@
 //! (as `.ci/run` sets after installing Debian's `chromium`), which turns a missing browser
 //! into a failure.
 
-mod common;
+
 
 use std::process::Command;
 
-use common::browser::{chromium_or_skip, dump_dom, screenshot};
+use mhi_viewer::browser::{chromium_or_skip, dump_dom, screenshot};
 
 use mhi_data::{SynthConfig, generate};
 

@@ -152,7 +152,7 @@ pub(super) fn write_layers_and_orbit(
         let soft =
             heuristic_weights_for(mhi.normals(), &rf.camera, &tf.camera, BlendHeuristic::Soft);
         let plan = mhi_render::plan::analyse(&mhi, &[(&tf.camera, &soft[..])], a.prune())?;
-        crate::export::write_viewer(
+        mhi_viewer::write_viewer(
             dir,
             &mhi,
             &plan,

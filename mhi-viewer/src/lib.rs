@@ -1,4 +1,4 @@
-//! `cargo xtask export` (and `render --export`): an MHI as a self-contained folder that a
+//! An MHI as a self-contained folder that a
 //! browser opens without a build step or network — the reference colour once (reference.png)
 //! when the layers share it, each normal's kept alpha layers tiled in one PNG atlas
 //! (`alpha_normal_<i>.png`) and, when every layer has a colour of its own (a model with a
@@ -10,7 +10,6 @@
 
 use std::path::Path;
 
-use anyhow::Context;
 use base64::Engine as _;
 use mhi_geom::Camera;
 use mhi_render::plan::ScenePlan;
@@ -29,9 +28,13 @@ pub const VIEWER_JS: &str = include_str!("../assets/viewer.js");
 pub struct ViewerCamera {
     /// What it is (an input photo or a listed view).
     pub name: String,
+    /// Focal length along x, in pixels.
     pub fx: f64,
+    /// Focal length along y, in pixels.
     pub fy: f64,
+    /// Principal point, x, in pixels.
     pub cx: f64,
+    /// Principal point, y, in pixels.
     pub cy: f64,
     /// `[R (row-major, 9), t (3)]`, `X_cam = R X_world + t`.
     pub cam_from_world: [f64; 12],
@@ -117,7 +120,7 @@ fn write_atlas(
     plan: &ScenePlan,
     i: usize,
     per_layer: Option<&Vec<image::Rgb32FImage>>,
-) -> anyhow::Result<AtlasOut> {
+) -> Result<AtlasOut> {
     let (w, h) = (
         mhi.reference().width as usize,
         mhi.reference().height as usize,
@@ -165,15 +168,16 @@ fn write_atlas(
         });
     }
     let file = format!("alpha_normal_{i}.png");
-    let img = image::GrayImage::from_raw(aw as u32, (rows * h) as u32, a).context("atlas size")?;
+    let img = image::GrayImage::from_raw(aw as u32, (rows * h) as u32, a).ok_or(Error::Size)?;
     let mut png = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .map_err(|e| Error::Png(e.to_string()))?;
     mhi_data::write_atomic(&dir.join(&file), &png)?;
     let alpha_bytes = img.into_raw();
     let colour_file = if per_layer.is_some() {
         let file = format!("colour_normal_{i}.png");
         let img = image::RgbImage::from_raw(aw as u32, (rows * h) as u32, c)
-            .context("colour atlas size")?;
+            .ok_or(Error::Size)?;
         mhi_data::write_png(&dir.join(&file), &img)?;
         colour_bytes = Some(img.into_raw());
         Some(file)
@@ -206,8 +210,11 @@ pub fn write_viewer(
     inputs: &[(&str, &Camera)],
     views: &[(String, &Camera)],
     video: Option<&[u8]>,
-) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|source| Error::Create {
+        dir: dir.to_path_buf(),
+        source,
+    })?;
     let (w, h) = (
         mhi.reference().width as usize,
         mhi.reference().height as usize,
@@ -276,7 +283,8 @@ pub fn write_viewer(
     if let Some(bytes) = video {
         mhi_data::write_atomic(&dir.join("video.mp4"), bytes)?;
     }
-    let manifest_json = serde_json::to_string_pretty(&manifest)?;
+    let manifest_json =
+        serde_json::to_string_pretty(&manifest).map_err(|e| Error::Json(e.to_string()))?;
     mhi_data::write_atomic(&dir.join("manifest.json"), manifest_json.as_bytes())?;
     let b64 = |v: &[u8]| base64::engine::general_purpose::STANDARD.encode(v);
     let alphas: Vec<String> = atlas_bytes.iter().map(|a| b64(a)).collect();
@@ -296,9 +304,36 @@ pub fn write_viewer(
     Ok(())
 }
 
-#[cfg(test)]
-#[path = "../tests/common/browser.rs"]
-mod browser;
+#[cfg(any(test, feature = "browser"))]
+pub mod browser;
+
+/// Why a viewer folder could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The folder could not be made.
+    #[error("cannot create {}: {source}", dir.display())]
+    Create {
+        /// The folder.
+        dir: std::path::PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A file of the folder could not be written.
+    #[error(transparent)]
+    Write(#[from] mhi_data::Error),
+    /// An atlas whose size does not match its pixels (a bug).
+    #[error("atlas size")]
+    Size,
+    /// An atlas that could not be encoded.
+    #[error("encoding an atlas: {0}")]
+    Png(String),
+    /// The manifest could not be written as JSON.
+    #[error("the manifest: {0}")]
+    Json(String),
+}
+
+/// Result of writing a viewer.
+pub type Result<T> = std::result::Result<T, Error>;
 
 #[cfg(test)]
 mod tests {
@@ -307,6 +342,17 @@ mod tests {
     use image::{Rgb, Rgb32FImage};
     use mhi_geom::{BlendHeuristic, Intrinsics, NormalSet, RigidTransform};
     use mhi_render::{Prune, RenderOptions};
+
+    /// PSNR of two images of one size (peak 1).
+    fn psnr(a: &Rgb32FImage, b: &Rgb32FImage) -> f64 {
+        let se: f64 = a
+            .as_raw()
+            .iter()
+            .zip(b.as_raw())
+            .map(|(x, y)| f64::from(x - y).powi(2))
+            .sum();
+        10.0 * (a.as_raw().len() as f64 / se).log10()
+    }
 
     /// An MHI whose every layer has a colour of its own, far from the others' (a hue per layer,
     /// a gradient across the image) and opaque discs at different places per layer.
@@ -401,9 +447,9 @@ mod tests {
                 .0
                 .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() / 255.0))
         });
-        let psnr = mhi_eval::psnr(&shot, &cpu8).unwrap();
-        eprintln!("per-layer colour: browser vs CPU PSNR {psnr:.2} dB");
-        assert!(psnr >= 35.0, "browser vs CPU: {psnr:.2} dB < 35 dB");
+        let agree = psnr(&shot, &cpu8);
+        eprintln!("per-layer colour: browser vs CPU PSNR {agree:.2} dB");
+        assert!(agree >= 35.0, "browser vs CPU: {agree:.2} dB < 35 dB");
 
         // The same alphas with every layer in the first layer's colour: far from the render
         // above, so a viewer that ignored the layers' own colours would fail.
@@ -421,7 +467,7 @@ mod tests {
         let shared = mhi_render::render(&one, &target, &RenderOptions::default())
             .unwrap()
             .image;
-        let apart = mhi_eval::psnr(&shared, &cpu).unwrap();
+        let apart = psnr(&shared, &cpu);
         assert!(
             apart < 25.0,
             "one colour for all layers scores {apart:.2} dB"

@@ -1,5 +1,5 @@
-//! Headless Chromium for the viewer's tests: where it is, and a screenshot of a page.
-//! Shared by `tests/viewer.rs` and the unit tests of `src/export.rs` (`#[path]`).
+//! Headless Chromium for the viewer's tests (feature `browser`): where it is, a screenshot of
+//! a page and its DOM. Test support: it panics when Chromium fails.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

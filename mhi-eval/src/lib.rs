@@ -1,7 +1,9 @@
 //! Image-quality metrics of view synthesis (PSNR and SSIM on plain `image` types; LPIPS lives
 //! with the pretrained backbones in `mhi-net`), the aggregation of per-view scores into report
-//! rows and tables ([`report`]), the report's figures ([`plot`]), and the evaluation protocol
-//! that ties them together, with methods plugged in through a trait ([`protocol`]).
+//! rows and tables ([`report`]), the report's figures ([`plot`]), the evaluation protocol that
+//! ties them together, with methods plugged in through a trait ([`protocol`]), and the
+//! project's whole evaluation with its own methods ([`run`]; `cargo xtask eval` parses its
+//! options and calls it).
 //!
 //! # Example
 //!
@@ -15,12 +17,18 @@
 //! assert!(mhi_eval::ssim(&a, &a).unwrap() > 0.999_999);
 //! ```
 
-pub mod coverage;
+pub use mhi_render::coverage;
+pub mod images;
 mod metrics;
+pub mod oracle;
 pub mod plot;
+pub mod progress;
 pub mod protocol;
 pub mod report;
+pub mod run;
+pub mod speed;
 pub mod stats;
+pub mod support;
 
 pub use coverage::covered_mask;
 pub use metrics::{MAX_PSNR, MIN_SSIM_SIDE, psnr, psnr_masked, ssim, ssim_masked};

@@ -49,10 +49,12 @@ pub mod loss;
 mod model;
 mod nets;
 pub mod pickle;
+pub mod pretrained;
 mod run;
 mod train;
 mod view;
 mod volume;
+pub mod weights;
 
 pub use config::{GRAD_CLIP_NORM, TrainConfig};
 pub use model::Model;

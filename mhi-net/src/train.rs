@@ -512,7 +512,7 @@ impl Trainer {
         let (r, t) = (&s.reference.camera, &s.target.camera);
         let covered = self.config.covered_loss.then(|| {
             let far = self.depths.first().copied().unwrap_or(self.config.far);
-            let m: Vec<f32> = mhi_eval::coverage::covered_mask(r, t, far)
+            let m: Vec<f32> = mhi_render::coverage::covered_mask(r, t, far)
                 .into_iter()
                 .map(f32::from)
                 .collect();

@@ -18,7 +18,7 @@ fn model(name: &str) -> PathBuf {
         .join(name)
 }
 
-/// The model `render` and `eval` use by default (`xtask/src/models.rs`).
+/// The model `render` and `eval` use by default (`mhi_net::pretrained`).
 fn shipped() -> PathBuf {
     model("mhi-n5d16-colour")
 }

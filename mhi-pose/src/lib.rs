@@ -29,6 +29,7 @@ use glam::{DMat3, DVec3};
 use image::RgbImage;
 use serde::{Deserialize, Serialize};
 
+pub mod accuracy;
 mod exif_focal;
 
 pub use exif_focal::{ExifFocal, exif_focal};

@@ -33,6 +33,7 @@
 //! ```
 
 mod bilinear;
+pub mod coverage;
 mod cpu;
 #[cfg(feature = "diff")]
 pub mod diff;

@@ -83,9 +83,7 @@ pub fn screenshot(
     image::imageops::crop_imm(&img, 0, 0, w, h).to_image()
 }
 
-/// The DOM of `page#hash` after its scripts ran (Chromium's `--dump-dom`). Used by the
-/// viewer test, not by the unit tests of `src/export.rs` that include this file too.
-#[allow(dead_code)]
+/// The DOM of `page#hash` after its scripts ran (Chromium's `--dump-dom`).
 pub fn dump_dom(browser: &Path, page: &Path, hash: &str, dir: &Path) -> String {
     let out = headless(browser)
         .args(["--virtual-time-budget=3000", "--dump-dom"])

@@ -176,8 +176,7 @@ fn write_atlas(
     let alpha_bytes = img.into_raw();
     let colour_file = if per_layer.is_some() {
         let file = format!("colour_normal_{i}.png");
-        let img = image::RgbImage::from_raw(aw as u32, (rows * h) as u32, c)
-            .ok_or(Error::Size)?;
+        let img = image::RgbImage::from_raw(aw as u32, (rows * h) as u32, c).ok_or(Error::Size)?;
         mhi_data::write_png(&dir.join(&file), &img)?;
         colour_bytes = Some(img.into_raw());
         Some(file)

@@ -1,24 +1,21 @@
 //! `cargo xtask`: the project's command line. Each task lives in its own module.
 
-mod bench;
 mod camera_path;
 mod common;
 mod data;
 mod demo;
-mod eval;
 mod experiments;
 mod metrics;
-mod models;
 mod options;
 mod pose;
-mod progress;
 mod render;
 mod stability;
 mod train;
-mod views;
 mod weights;
 
 use clap::Parser;
+use mhi_eval::{images as views, progress};
+use mhi_net::pretrained as models;
 
 /// Multiple Homography Image view synthesis: the project's tasks.
 ///
@@ -39,13 +36,13 @@ enum Task {
     Triplets(data::TripletsArgs),
     /// Oracle experiment on synthetic scenes: MHIs and MPIs built from the exact geometry,
     /// rendered into target views; PSNR per rotation bin, and pruned against full rendering.
-    Oracle(experiments::OracleArgs),
+    Oracle(mhi_eval::oracle::OracleArgs),
     /// Training-free MHI from two posed photos (plane-sweep photo-consistency), rendered into a
     /// third view and compared with the real photo and with the nearest input view.
     Sweep(experiments::SweepArgs),
     /// Time one novel view of an N x D MHI against the PyTorch peer renderer (same machine, same
     /// run, same thread count) and against the memory-bandwidth floor.
-    Bench(bench::BenchArgs),
+    Bench(mhi_eval::speed::BenchArgs),
     /// Train the two-stage MHI model (phase 1: stage-1 3D U-Nets; phase 2: the blending U-Net);
     /// `--normals 1` trains the MPI baseline with the same code. Checkpoints are atomic and
     /// `--resume` continues exactly where a run stopped.
@@ -77,23 +74,6 @@ enum Task {
     /// essential matrix, triangulation): writes a RealEstate10K camera file, row 1 the first
     /// photo at the identity, row 2 the second, and prints what it found.
     Pose(pose::PoseArgs),
-}
-
-/// The current UTC date and time, for reports (from `date`; the epoch seconds if it is missing).
-pub fn date() -> String {
-    std::process::Command::new("date")
-        .args(["-u", "+%Y-%m-%d %H:%M UTC"])
-        .output()
-        .ok()
-        .and_then(|o| String::from_utf8(o.stdout).ok())
-        .map(|s| s.trim().to_string())
-        .filter(|s| !s.is_empty())
-        .unwrap_or_else(|| {
-            let t = std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map_or(0, |d| d.as_secs());
-            format!("{t} s since 1970 (UTC)")
-        })
 }
 
 /// glibc's malloc gives every large block back to the kernel when it is freed and maps fresh,
@@ -144,20 +124,20 @@ fn main() {
     let result = match task {
         Task::Synth(a) => data::synth(&a),
         Task::Triplets(a) => data::triplets(&a),
-        Task::Oracle(a) => experiments::oracle(&a),
+        Task::Oracle(a) => mhi_eval::oracle::oracle(&a),
         Task::Sweep(a) => experiments::sweep(&a),
-        Task::Bench(a) => bench::bench(&a),
+        Task::Bench(a) => mhi_eval::speed::bench(&a),
         Task::Train(a) => train::train(&a),
         Task::Stability(a) => stability::stability(&a),
         Task::Weights(a) => weights::weights(&a),
         Task::Metrics(a) => metrics::metrics(&a),
-        Task::Eval(a) => eval::eval(&a),
+        Task::Eval(a) => mhi_eval::run::eval(&a),
         Task::Demo(a) => demo::demo(
             &a,
             &demo::Commands {
                 weights: &weights::weights,
                 train: &train::train,
-                eval: &eval::eval,
+                eval: &mhi_eval::run::eval,
                 render: &render::render,
             },
         ),

@@ -8,6 +8,7 @@ use anyhow::{Context, bail};
 use clap::Args;
 use mhi_data::{CameraFile, CameraRow};
 use mhi_geom::RigidTransform;
+use mhi_pose::accuracy::{Outcome, table_row};
 use mhi_pose::{Options, Photo, PosedPair};
 
 /// Intrinsics options, shared by `pose`, `render` and `export`.
@@ -161,87 +162,6 @@ pub fn pose(a: &PoseArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// One pair's errors (degrees) and time, or a failure.
-#[derive(Debug, Clone, Copy)]
-struct Outcome {
-    rotation_deg: f64,
-    direction_deg: f64,
-    seconds: f64,
-    failed: bool,
-}
-
-impl Outcome {
-    fn of(r: glam::DMat3, t: glam::DVec3, truth: &RigidTransform, seconds: f64) -> Self {
-        let rotation_deg = mhi_geom::rotation_angle_deg(&(r * truth.rotation().transpose()));
-        let direction_deg = t
-            .normalize()
-            .dot(truth.translation().normalize())
-            .clamp(-1.0, 1.0)
-            .acos()
-            .to_degrees();
-        Self {
-            rotation_deg,
-            direction_deg,
-            seconds,
-            failed: !(rotation_deg.is_finite() && direction_deg.is_finite()),
-        }
-    }
-    fn failure(seconds: f64) -> Self {
-        Self {
-            rotation_deg: f64::INFINITY,
-            direction_deg: f64::INFINITY,
-            seconds,
-            failed: true,
-        }
-    }
-}
-
-/// Area under the recall curve of max(rotation, direction) error up to `limit` degrees,
-/// normalised to 1 (SuperGlue's pose AUC); failures count as infinite errors.
-fn auc(errors: &[f64], limit: f64) -> f64 {
-    let mut e: Vec<f64> = errors.to_vec();
-    e.sort_by(f64::total_cmp);
-    let n = e.len() as f64;
-    let (mut area, mut last_e, mut last_r) = (0.0, 0.0, 0.0);
-    for (i, &x) in e.iter().enumerate() {
-        if x > limit {
-            break;
-        }
-        area += (x - last_e) * last_r;
-        last_e = x;
-        last_r = (i + 1) as f64 / n;
-    }
-    area += (limit - last_e) * last_r;
-    area / limit
-}
-
-fn median(v: &[f64]) -> f64 {
-    let mut v: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-fn row(name: &str, o: &[Outcome]) -> String {
-    let worst: Vec<f64> = o
-        .iter()
-        .map(|o| o.rotation_deg.max(o.direction_deg))
-        .collect();
-    format!(
-        "| {name} | {} | {:.2}° | {:.2}° | {:.2} / {:.2} / {:.2} | {} | {:.2} s |",
-        o.len(),
-        median(&o.iter().map(|o| o.rotation_deg).collect::<Vec<_>>()),
-        median(&o.iter().map(|o| o.direction_deg).collect::<Vec<_>>()),
-        auc(&worst, 5.0),
-        auc(&worst, 10.0),
-        auc(&worst, 20.0),
-        o.iter().filter(|o| o.failed).count(),
-        median(&o.iter().map(|o| o.seconds).collect::<Vec<_>>()),
-    )
-}
-
 /// `cargo xtask pose --data …`: ours against the cameras and the OpenCV peer, per set.
 fn accuracy(a: &PoseArgs) -> anyhow::Result<()> {
     println!(
@@ -315,7 +235,7 @@ fn accuracy(a: &PoseArgs) -> anyhow::Result<()> {
                 }));
             }
             let name = format!("{} ({gap})", mhi_data::root_name(root));
-            println!("{}", row(&format!("{name}, ours"), &ours));
+            println!("{}", table_row(&format!("{name}, ours"), &ours));
             if let Some(peer) = &a.peer {
                 let theirs = run_peer(a, peer, &jobs)?;
                 let outcomes: Vec<Outcome> = theirs
@@ -338,7 +258,7 @@ fn accuracy(a: &PoseArgs) -> anyhow::Result<()> {
                         }
                     })
                     .collect();
-                println!("{}", row(&format!("{name}, OpenCV"), &outcomes));
+                println!("{}", table_row(&format!("{name}, OpenCV"), &outcomes));
             }
         }
     }

@@ -7,8 +7,6 @@
 //! (as `.ci/run` sets after installing Debian's `chromium`), which turns a missing browser
 //! into a failure.
 
-
-
 use std::process::Command;
 
 use mhi_viewer::browser::{chromium_or_skip, dump_dom, screenshot};

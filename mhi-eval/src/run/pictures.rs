@@ -65,7 +65,7 @@ pub(super) fn write_samples(
     for o in outputs {
         let name = file_label(o);
         let img = clipped(&o.image);
-        let p = mhi_eval::psnr_masked(&img, gt, covered)?
+        let p = crate::psnr_masked(&img, gt, covered)?
             .map_or("no covered pixel".to_string(), |p| {
                 format!("{p:.1} dB covered")
             });
@@ -77,7 +77,7 @@ pub(super) fn write_samples(
         let _ = write!(row, " <img src=\"{}\" width=\"160\"> |", save(&name, &img)?);
         let errp = save(
             &format!("{name}_error"),
-            &crate::common::error_map(&img, gt),
+            &crate::images::error_map(&img, gt),
         )?;
         let _ = write!(err_row, " <img src=\"{errp}\" width=\"160\"> |");
     }
@@ -140,7 +140,7 @@ pub(super) fn write_layers_and_orbit(
     let wts: Vec<_> = (0..mhi.n())
         .map(|i| {
             enlarge(
-                &crate::views::grey(&weights[i * tpx..(i + 1) * tpx], tw, th),
+                &crate::images::grey(&weights[i * tpx..(i + 1) * tpx], tw, th),
                 f,
             )
         })
@@ -176,18 +176,18 @@ pub(super) fn write_layers_and_orbit(
             &rf.camera,
             0.5 * baseline,
             a.orbit_frames,
-            crate::views::median_depth(&mhi),
+            crate::images::median_depth(&mhi),
         )?;
         rotation = Some(mhi_geom::path::PathRange::of(&rf.camera, &cams).max_rotation_deg);
         let mut frames = Vec::new();
         for c in &cams {
-            let (img, _) = crate::views::view(&mhi, synth.model(), c, a.prune())?;
+            let (img, _) = crate::images::view(&mhi, synth.model(), c, a.prune())?;
             frames.push(enlarge(
                 &mhi_data::to_u8(&clipped(&img)),
                 factor_for(img.width(), 256),
             ));
         }
-        crate::views::write_gif(&a.out.join("orbit.gif"), &frames, 80)?;
+        crate::images::write_gif(&a.out.join("orbit.gif"), &frames, 80)?;
     }
     Ok(rotation)
 }

@@ -196,7 +196,7 @@ impl Ctx<'_> {
         let made = |source: MhiSource<'_>| ViewSynthesis::new(source).mhi(rf, sf);
         if !self.oracle_grid.is_empty() {
             let scene = load_scene(&seq.dir().join("scene.json"))?;
-            let truth = crate::common::truth_of(&scene, &rf.camera);
+            let truth = crate::support::truth_of(&scene, &rf.camera);
             for &(n, d) in self.oracle_grid {
                 let (mhi, _) = made(MhiSource::Oracle {
                     normals: NormalSet::paper_subset(n)?,
@@ -319,7 +319,7 @@ pub(super) fn paired<T>(
         first_e.get_or_insert(e);
         first_p.get_or_insert(p);
     }
-    let median = crate::bench::median;
+    let median = crate::support::median;
     let (e, p) = (
         first_e.context("no exact render")?,
         first_p.context("no pruned render")?,

@@ -73,8 +73,8 @@ impl PruneMeasure {
             max_abs,
             mean_abs: sum / (3 * pruned.width() as usize * pruned.height() as usize).max(1) as f64,
             over_bound: over,
-            psnr_pruned: mhi_eval::psnr_masked(pruned, gt, covered)?,
-            psnr_exact: mhi_eval::psnr_masked(&exact, gt, covered)?,
+            psnr_pruned: crate::psnr_masked(pruned, gt, covered)?,
+            psnr_exact: crate::psnr_masked(&exact, gt, covered)?,
             ms_pruned: render_ms + o.times.blend_ms,
             ms_exact: e.render_ms + o.times.blend_ms,
             layers: e.stats.layers,
@@ -282,14 +282,14 @@ pub(super) fn budget_tradeoff(
         return Ok(());
     }
     let list: Vec<String> = budgets.iter().map(|b| format!("{b}")).collect();
-    mhi_eval::plot::lines(
+    crate::plot::lines(
         stem,
         &curves,
         &format!(
             "what each budget buys (exact, then {} 8-bit levels)",
             list.join(", ")
         ),
-        &mhi_eval::plot::Axes {
+        &crate::plot::Axes {
             x: "speed-up over the exact render (x)",
             y: "covered PSNR change against exact (dB)",
             log: false,

@@ -17,7 +17,7 @@ use mhi_render::diff::{WarpGeometry, heuristic_weights_tensor, image_to_tensor, 
 /// The default model's configuration and a fixed sample (frames 0, 3, 6 of the first training
 /// sequence) at its training size.
 fn default_sample(data: &Path) -> anyhow::Result<(TrainConfig, [LoadedFrame; 3])> {
-    crate::common::ensure_synthetic(data)?;
+    crate::support::ensure_synthetic(data)?;
     let ds = Dataset::open(data, "train", 3)?;
     let seq = ds
         .sequences
@@ -257,12 +257,12 @@ pub fn peer_train_step(
 /// loaded on the other device) and the same sample; report the largest differences and times.
 pub fn backend_agreement(
     data: &Path,
-    other: crate::common::Backend,
+    other: crate::run::options::Backend,
 ) -> anyhow::Result<serde_json::Value> {
     use burn::module::Module as _;
     let (config, [rf, sf, tf]) = default_sample(data)?;
     let flex = Device::flex();
-    let gpu = crate::common::device(other)?;
+    let gpu = crate::support::device(other)?;
     let (stage1, blend) = init_models(&config, &flex);
     let tmp = tempfile::tempdir()?;
     stage1

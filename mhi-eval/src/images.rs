@@ -1,5 +1,5 @@
-//! Helpers shared by `eval`, `render` and `demo`: one view of an MHI, image sheets and animated
-//! GIFs.
+//! Pictures of MHIs and views, shared by the evaluation and the commands: one view of an MHI,
+//! layer pictures, image sheets, error maps and animated GIFs.
 
 use std::path::Path;
 
@@ -22,7 +22,7 @@ pub fn view(
     Ok((v.image, v.stats))
 }
 
-pub use mhi_eval::protocol::clipped;
+pub use crate::protocol::clipped;
 
 /// The index of the MHI's normal closest to the reference's optical axis (largest z).
 pub fn fronto_normal(mhi: &Mhi) -> Option<usize> {
@@ -115,5 +115,20 @@ pub fn grey(values: &[f32], width: u32, height: u32) -> RgbImage {
         let v = values[(y * width + x) as usize];
         let g = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
         image::Rgb([g, g, g])
+    })
+}
+
+/// Write `img` as an 8-bit PNG, atomically.
+pub fn save_png(path: &Path, img: &Rgb32FImage) -> anyhow::Result<()> {
+    mhi_data::write_png(path, &mhi_data::to_u8(img))?;
+    Ok(())
+}
+
+/// |a − b| averaged over channels, scaled ×4 and shown in grey (so a 0.25 error is white).
+pub fn error_map(a: &Rgb32FImage, b: &Rgb32FImage) -> Rgb32FImage {
+    Rgb32FImage::from_fn(a.width(), a.height(), |x, y| {
+        let (p, q) = (a.get_pixel(x, y).0, b.get_pixel(x, y).0);
+        let e = ((p[0] - q[0]).abs() + (p[1] - q[1]).abs() + (p[2] - q[2]).abs()) / 3.0 * 4.0;
+        image::Rgb([e, e, e])
     })
 }

@@ -1,9 +1,12 @@
-//! `cargo xtask bench`: one novel view of an N × D MHI, timed against the PyTorch peer renderer
-//! in the same run with the same thread count, plus the memory-bandwidth floor.
+//! Speed measured against a peer in the same run (`cargo xtask bench` is [`bench()`] with its
+//! options parsed): one novel view of an N × D MHI against the PyTorch peer renderer with the
+//! same thread count, and the memory-bandwidth floor; the pruned render on a real scene; one
+//! training step of the default model against its PyTorch twin ([`step`]); every op of it
+//! ([`ops`]); how a view's time grows with size, planes, normals and threads ([`scaling`]).
 
-mod ops;
-mod scaling;
-mod step;
+pub mod ops;
+pub mod scaling;
+pub mod step;
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -35,7 +38,7 @@ pub struct BenchArgs {
     pub threads: usize,
     /// The MHI's grid.
     #[command(flatten)]
-    pub grid: crate::common::PlaneArgs,
+    pub grid: crate::run::options::PlaneArgs,
     /// Image side in pixels (square).
     #[arg(long, default_value_t = 256)]
     pub size: u32,
@@ -65,7 +68,7 @@ pub struct BenchArgs {
     /// Instead of the renderer, run the default model's forward pass on flex and on this
     /// backend (`wgpu`, needs `--features wgpu`) with the same weights and compare.
     #[arg(long, value_enum)]
-    pub compare_backend: Option<crate::common::Backend>,
+    pub compare_backend: Option<crate::run::options::Backend>,
     /// Dataset for --train-step and --compare-backend (synthetic; generated if missing), and
     /// the scene of the pruned render's timing: the sweep MHI of its first test triplet (a real
     /// root such as ../shared/data/real/re10k-3 gives a real scene).
@@ -106,11 +109,7 @@ pub fn median_ms(runs: usize, mut f: impl FnMut()) -> f64 {
     )
 }
 
-/// The median of `v` (the upper one of an even count; NaN for an empty `v`).
-pub fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
-}
+pub use crate::support::median;
 
 /// The peer's scene: K = [[W/2, 0, W/2], [0, W/2, H/2]], ref_from_tgt = (rot((0.2, 1, 0.1), 4°),
 /// (0.08, −0.02, 0.05)), uniform random alphas and colours.
@@ -182,7 +181,7 @@ struct RealPruning {
 /// MHI of the same triplet), each rendered exactly and with the default plan.
 fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<Vec<RealPruning>> {
     if a.data == std::path::Path::new("data/synth") {
-        crate::common::ensure_synthetic(&a.data)?;
+        crate::support::ensure_synthetic(&a.data)?;
     }
     let ds = mhi_data::Dataset::open(&a.data, "test", 3).with_context(|| {
         format!(
@@ -203,7 +202,7 @@ fn realistic_pruning(a: &BenchArgs, pool: &rayon::ThreadPool) -> anyhow::Result<
         ),
         None => None,
     };
-    let mut size = crate::common::size_for(mhi_data::check_same_size(&[&seq.frames[0]])?, a.size);
+    let mut size = crate::support::size_for(mhi_data::check_same_size(&[&seq.frames[0]])?, a.size);
     if let Some(m) = &model {
         // The U-Nets need sides divisible by the model's multiple.
         let k = m.config().size_multiple().max(1) as u32;
@@ -294,7 +293,7 @@ fn time_pruning(
         (median(e), median(p), median(r.clone()), r)
     });
     let (speedup_interval, speedup_coverage) =
-        mhi_eval::stats::median_interval(&ratios, 0.95).context("a render time was not finite")?;
+        crate::stats::median_interval(&ratios, 0.95).context("a render time was not finite")?;
     Ok(RealPruning {
         mhi: what,
         scene,
@@ -399,7 +398,7 @@ fn read_bandwidth() -> f64 {
 /// `bench --train-step`: the phase-1 step, beside the PyTorch twin in alternating rounds with
 /// --peer.
 fn train_step_bench(a: &BenchArgs) -> anyhow::Result<()> {
-    let weights = crate::common::cache_dir(a.cache.as_deref()).join("weights");
+    let weights = crate::support::cache_dir(a.cache.as_deref()).join("weights");
     let Some(peer) = &a.peer else {
         let v = step::train_step(&a.data, &weights, a.runs)?;
         return write_json(a, &v);
@@ -436,7 +435,7 @@ fn train_step_bench(a: &BenchArgs) -> anyhow::Result<()> {
     .enumerate()
     {
         let ratios: Vec<f64> = rounds.iter().map(|r| r[part]).collect();
-        let (ci, coverage) = mhi_eval::stats::median_interval(&ratios, 0.95)
+        let (ci, coverage) = crate::stats::median_interval(&ratios, 0.95)
             .context("the peer or this step gave a non-finite time")?;
         let m = median(ratios.clone());
         println!(
@@ -494,7 +493,7 @@ fn peer_rounds(
         rounds.push((ours, torch));
     }
     let ratios: Vec<f64> = rounds.iter().map(|(o, t)| t / o).collect();
-    let (ci, coverage) = mhi_eval::stats::median_interval(&ratios, 0.95)
+    let (ci, coverage) = crate::stats::median_interval(&ratios, 0.95)
         .context("the peer or this renderer gave a non-finite time")?;
     let ratio = median(ratios);
     let torch = median(rounds.iter().map(|(_, t)| *t).collect());
@@ -576,9 +575,9 @@ pub fn bench(a: &BenchArgs) -> anyhow::Result<()> {
     }
     println!(
         "CPU: {} ({} threads); {}",
-        crate::common::cpu_model(),
+        crate::support::cpu_model(),
         rayon::current_num_threads(),
-        crate::common::kernel_paths()
+        crate::support::kernel_paths()
     );
     if other_bench(a)? {
         return Ok(());

@@ -31,7 +31,7 @@ pub struct OpSpec {
 /// The ops of one phase-1 step of the default model (N = 5, D = 8, 64 × 64, widths 8/16/32),
 /// from `xtask/scripts/ops.json` (the table the PyTorch twin is handed too).
 pub fn default_ops() -> Vec<OpSpec> {
-    serde_json::from_str(include_str!("../../scripts/ops.json"))
+    serde_json::from_str(include_str!("../../../xtask/scripts/ops.json"))
         .expect("xtask/scripts/ops.json is a list of op specs (checked by a test)")
 }
 

@@ -1,21 +1,33 @@
-//! `cargo xtask eval`: every method that applies, scored on the triplets of a dataset, with the
-//! time per novel view split into cost volume, network, render and blend; the report (markdown,
-//! JSON, CSV), its figures, sample images, the MHI layers of one scene and an orbit GIF.
+//! The project's evaluation, whole (`cargo xtask eval` is this with its options parsed): every
+//! method that applies — the learned MHI and its heuristic blends, the MPI, the training-free
+//! sweep, the oracle, the nearest view and renders read from files — scored on the triplets of
+//! a dataset through [`crate::protocol`], with the time per novel view split into cost volume,
+//! network, render and blend; the report (markdown, JSON, CSV), its figures, sample images, the
+//! MHI layers of one scene, an orbit GIF and optionally a browser viewer.
+//!
+//! ```no_run
+//! use clap::Parser as _;
+//! # #[derive(clap::Parser)] struct Cli { #[command(flatten)] a: mhi_eval::run::EvalArgs }
+//! // The options as `cargo xtask eval` takes them (every field is public, too).
+//! let cli = Cli::parse_from(["eval", "--data", "data/synth", "--per-sequence", "1", "--out", "out/eval"]);
+//! mhi_eval::run::eval(&cli.a)?; // out/eval/report.md, report.json, figures
+//! # Ok::<(), anyhow::Error>(())
+//! ```
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use crate::Bootstrap;
+use crate::plot::{Curve, TimePoint};
+use crate::protocol::{self, MethodError};
+use crate::report::{self, Comparison, Config, Measurement, Row, Times, config_label};
 use anyhow::{Context, bail};
 use burn::tensor::Device;
 use image::Rgb32FImage;
 use mhi_data::output::StagedDir;
 use mhi_data::sanitize::for_markdown;
 use mhi_data::{Dataset, Fit, LoadedFrame, TripletIndex, TripletKind, load_frame, load_scene};
-use mhi_eval::Bootstrap;
-use mhi_eval::plot::{Curve, TimePoint};
-use mhi_eval::protocol::{self, MethodError};
-use mhi_eval::report::{self, Comparison, Config, Measurement, Row, Times, config_label};
 use mhi_geom::{BlendHeuristic, NormalSet};
 use mhi_net::backbone::{Backbone, Net};
 use mhi_net::{BlendChoice, Blended, MhiSource, Model, ViewSynthesis, multi_normal};
@@ -23,16 +35,17 @@ use mhi_render::{Blend, Mhi, Prune, RenderOptions, SweepConfig, heuristic_weight
 use serde::Serialize;
 
 mod methods;
+pub mod options;
 mod pictures;
 mod pruning;
 
-use crate::views::{clipped, enlarge, factor_for, layer_picture, strip};
+use crate::images::{clipped, enlarge, factor_for, layer_picture, strip};
 use methods::Ctx;
 use pictures::{write_layers_and_orbit, write_samples};
 use pruning::{PruneMeasure, budget_tradeoff, prune_markdown, prune_rows};
 
-use crate::common::size_for;
-use crate::options::{EvalArgs, Method};
+use crate::support::size_for;
+pub use options::{DepthRange, EvalArgs, Method, PoseArg};
 
 impl EvalArgs {
     /// The render plan of the scored images.
@@ -54,11 +67,12 @@ impl EvalArgs {
     }
 }
 
+/// Parse an `NxD` configuration (normals x planes per normal), e.g. `5x16`.
 pub fn parse_nd(s: &str) -> anyhow::Result<(usize, usize)> {
     let (n, d) = s
         .split_once(['x', 'X'])
         .with_context(|| format!("configuration {s:?} must look like 5x8 (normals x planes)"))?;
-    let n = crate::common::parse_normals(n)
+    let n = options::parse_normals(n)
         .map_err(|e| anyhow::anyhow!("configuration {s:?}: normals {e}"))?;
     let d: usize = d
         .trim()
@@ -143,7 +157,7 @@ struct ReportJson<'a> {
 /// [`mhi_data::output`]), as is the `--export` viewer.
 pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     if a.data.len() == 1 && a.data[0] == Path::new("data/synth") {
-        crate::common::ensure_synthetic(&a.data[0])?;
+        crate::support::ensure_synthetic(&a.data[0])?;
     }
     if let Some(dir) = &a.export {
         let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
@@ -155,7 +169,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             );
         }
     }
-    crate::common::check_gif_frames("--orbit-frames", a.orbit_frames)?;
+    crate::support::check_gif_frames("--orbit-frames", a.orbit_frames)?;
     let report = StagedDir::begin(&a.out, "eval report", a.overwrite)?;
     let viewer = a
         .export
@@ -190,7 +204,7 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
     let cpu = Device::flex();
     let models = load_models(a, &cpu)?;
     let (sweep_grid, oracle_grid, sweep_config, sizes) = plan_grids_and_sizes(a, &ds, &models)?;
-    let weights_dir = crate::common::cache_dir(a.cache.as_deref()).join("weights");
+    let weights_dir = crate::support::cache_dir(a.cache.as_deref()).join("weights");
     let lpips_net = Backbone::load(&weights_dir, Net::Alex, &cpu)
         .inspect_err(|e| {
             eprintln!("note: LPIPS not computed ({e}; `cargo xtask weights` fetches them)");
@@ -225,7 +239,7 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
         }
         let outputs = outputs_of(&ctx, (&rf, &sf, &tf), seq, t, size)?;
         let gt = &tf.image;
-        let covered = mhi_eval::covered_mask(&rf.camera, &tf.camera, a.range.far);
+        let covered = crate::covered_mask(&rf.camera, &tf.camera, a.range.far);
         let lpips = |x: &Rgb32FImage, y: &Rgb32FImage| -> Result<f64, MethodError> {
             let net = lpips_net.as_ref().expect("only called with a network");
             Ok(lpips_of(net, x, y, &cpu)?)
@@ -385,8 +399,8 @@ fn report_meta(
             a.range.far
         ),
         poses: match a.poses {
-            crate::options::PoseArg::Given => "given (the dataset's cameras)".into(),
-            crate::options::PoseArg::Estimated => format!(
+            options::PoseArg::Given => "given (the dataset's cameras)".into(),
+            options::PoseArg::Estimated => format!(
                 "estimated from the frames by mhi-pose with the dataset's intrinsics, the translation scaled to the true baseline; {pose_failures} of {} triplets kept the true pose (no estimate)",
                 index.triplets.len()
             ),
@@ -396,7 +410,7 @@ fn report_meta(
         bootstrap: boot,
         machine: machine(),
         threads: rayon::current_num_threads(),
-        date: crate::date(),
+        date: crate::support::date(),
         orbit_rotation_deg: orbit_rotation,
         renders: a
             .renders
@@ -420,7 +434,7 @@ fn load_triplet(
         Ok(load_frame(&seq.frames[i], Some(size), Fit::Stretch)?)
     };
     let (rf, mut sf, tf) = (load(t.reference)?, load(t.source)?, load(t.target)?);
-    if a.poses == crate::options::PoseArg::Estimated {
+    if a.poses == options::PoseArg::Estimated {
         match estimated_source(&seq.frames[t.reference], &seq.frames[t.source], &rf, &sf) {
             Ok(cam) => sf.camera = cam,
             Err(e) => {
@@ -550,7 +564,7 @@ fn open_triplets(a: &EvalArgs) -> anyhow::Result<(Dataset, TripletIndex)> {
             idx.validate(&ds, p)?;
             idx
         }
-        None => crate::common::sample_index(&ds, a.per_sequence, a.seed)?,
+        None => crate::support::sample_index(&ds, a.per_sequence, a.seed)?,
     };
     if index.triplets.is_empty() {
         match &a.index {
@@ -576,7 +590,7 @@ fn load_models(a: &EvalArgs, cpu: &Device) -> anyhow::Result<Vec<Loaded>> {
         let needs_run = [Method::Learned, Method::Soft, Method::Hard, Method::Avg]
             .iter()
             .any(|m| a.methods.contains(m));
-        if let Some(p) = crate::models::pretrained().filter(|_| needs_run) {
+        if let Some(p) = mhi_net::pretrained::pretrained().filter(|_| needs_run) {
             println!(
                 "using the pretrained model {} (--run chooses another, --no-pretrained none)",
                 p.display()
@@ -664,7 +678,7 @@ fn plan_grids_and_sizes(
             )
             .max()
             .unwrap_or(1);
-        crate::common::check_memory(
+        crate::support::check_memory(
             &format!("evaluation size of sequence {}", seq.name),
             size.0,
             size.1,
@@ -722,7 +736,7 @@ fn write_figures_and_markdown(
             });
         }
     }
-    mhi_eval::plot::error_vs_time(
+    crate::plot::error_vs_time(
         &a.out.join("error_vs_time"),
         &points,
         &format!(
@@ -741,7 +755,7 @@ fn write_figures_and_markdown(
     let curves = training_curves(models)?;
     let has_curves = !curves.is_empty();
     if has_curves {
-        mhi_eval::plot::training_curve(
+        crate::plot::training_curve(
             &a.out.join("training_curve"),
             &curves,
             "validation PSNR during training",
@@ -1094,7 +1108,7 @@ fn print_summary(rows: &[Row], comparisons: &[Comparison]) {
         );
     }
     for c in comparisons.iter().filter(|c| {
-        c.bin == "all" && c.kind == "all" && c.metric == mhi_eval::report::Metric::PsnrCovered
+        c.bin == "all" && c.kind == "all" && c.metric == crate::report::Metric::PsnrCovered
     }) {
         println!(
             "{} − {}: covered PSNR {:+.2} dB [{:+.2}, {:+.2}] ({})",
@@ -1139,7 +1153,7 @@ fn estimated_source(
 }
 
 fn machine() -> String {
-    crate::common::cpu_model()
+    crate::support::cpu_model()
 }
 
 #[cfg(test)]

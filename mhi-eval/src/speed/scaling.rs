@@ -5,11 +5,11 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use crate::plot::{Axes, Curve};
 use burn::tensor::Device;
 use glam::DVec3;
 use image::Rgb32FImage;
 use mhi_data::LoadedFrame;
-use mhi_eval::plot::{Axes, Curve};
 use mhi_geom::{BlendHeuristic, Camera, NormalSet, depths_linear_in_disparity};
 use mhi_net::{BlendChoice, MhiSource, Model, TrainConfig, ViewSynthesis};
 use mhi_render::{Blend, Prune, RenderOptions, SweepConfig, render};
@@ -226,7 +226,7 @@ pub fn scaling(out: &Path, runs: usize) -> anyhow::Result<serde_json::Value> {
                 points: series,
             });
         }
-        mhi_eval::plot::lines(
+        crate::plot::lines(
             &out.join(format!("scaling_{axis}")),
             &curves,
             &format!("time per view against {axis} (log-log; slope = exponent)"),

@@ -5,7 +5,36 @@
 //! project's whole evaluation with its own methods ([`run`]; `cargo xtask eval` parses its
 //! options and calls it).
 //!
-//! # Example
+//! # Example: two methods on a dataset
+//!
+//! Triplets of a (here synthetic) dataset, two methods, every view scored on its covered
+//! region, rows with bootstrap intervals, a paired comparison, the tables and the error-against-
+//! time figure:
+//!
+//! ```
+//! use mhi_data::{Dataset, SynthConfig, TripletIndex, generate};
+//! use mhi_eval::methods::{Nearest, Sweep};
+//! use mhi_eval::protocol::{Method, evaluate};
+//! use mhi_eval::{Bootstrap, plot, report};
+//!
+//! let dir = tempfile::tempdir()?;
+//! let synth = SynthConfig { scenes: 2, frames: 5, width: 64, height: 48, test_fraction: 1.0,
+//!                           val_fraction: 0.0, ..SynthConfig::default() };
+//! generate(&synth, dir.path(), &|| {})?;
+//! let data = Dataset::open(dir.path(), "test", 3)?;
+//! let triplets = TripletIndex::sample(&data, 2, 0);
+//! let (mut sweep, mut nearest) = (Sweep::new(5, 8, 1.0, 100.0)?, Nearest);
+//! let views = evaluate(&data, &triplets, None, 100.0, &mut [&mut sweep, &mut nearest], None)?;
+//! let boot = Bootstrap::default();
+//! let rows = report::aggregate(&views, &boot);
+//! let diff = report::compare(&views, &sweep.config(), &nearest.config(), &boot);
+//! println!("{}", report::markdown_tables(&rows, &diff));
+//! plot::error_vs_time(&dir.path().join("error_vs_time"), &plot::time_points(&rows), "PSNR")?;
+//! assert!(dir.path().join("error_vs_time.svg").is_file() && !diff.is_empty());
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! PSNR and SSIM alone:
 //!
 //! ```
 //! use image::Rgb32FImage;
@@ -19,6 +48,7 @@
 
 pub use mhi_render::coverage;
 pub mod images;
+pub mod methods;
 mod metrics;
 pub mod oracle;
 pub mod plot;

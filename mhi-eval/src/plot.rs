@@ -411,6 +411,25 @@ pub fn error_vs_time(stem: &Path, points: &[TimePoint], title: &str) -> Result<(
     svg_and_png!(stem, draw_error_vs_time, points, title)
 }
 
+/// The points of [`error_vs_time`] from report rows: every timed configuration over all
+/// triplets, its covered PSNR (the whole image's where there is no covered score) with its
+/// interval, against its time per view.
+pub fn time_points(rows: &[crate::report::Row]) -> Vec<TimePoint> {
+    rows.iter()
+        .filter(|r| r.bin == "all" && r.kind == "all" && r.timed)
+        .map(|r| TimePoint {
+            label: crate::report::config_label(&r.method, r.normals, r.planes),
+            ms: r.ms_per_view,
+            psnr: r.psnr_covered.unwrap_or(r.psnr),
+            psnr_ci: if r.psnr_covered.is_some() {
+                r.psnr_covered_ci
+            } else {
+                Some(r.psnr_ci)
+            },
+        })
+        .collect()
+}
+
 /// `stem.svg` and `stem.png`: validation PSNR against wall-clock training time, one line per
 /// curve.
 pub fn training_curve(stem: &Path, curves: &[Curve], title: &str) -> Result<(), PlotError> {

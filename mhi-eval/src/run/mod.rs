@@ -702,20 +702,7 @@ fn write_figures_and_markdown(
     sizes_used: &[(u32, u32)],
 ) -> anyhow::Result<()> {
     // Figures, from the rows.
-    let mut points: Vec<TimePoint> = rows
-        .iter()
-        .filter(|r| r.bin == "all" && r.kind == "all" && r.timed)
-        .map(|r| TimePoint {
-            label: config_label(&r.method, r.normals, r.planes),
-            ms: r.ms_per_view,
-            psnr: r.psnr_covered.unwrap_or(r.psnr),
-            psnr_ci: if r.psnr_covered.is_some() {
-                r.psnr_covered_ci
-            } else {
-                Some(r.psnr_ci)
-            },
-        })
-        .collect();
+    let mut points = crate::plot::time_points(rows);
     // The same MHIs rendered exactly: a separate series, beside the pruned (scored) renders.
     for p in prune_rows
         .iter()

@@ -3,23 +3,26 @@
 one report cannot hold together (two runs with the same method, N and D share a row):
 
     python3 xtask/scripts/paired_runs.py A/report.json B/report.json [--method mpi] [--baseline sweep]
+        [--metric psnr_covered]
 
 Prints, with 95 % percentile bootstrap intervals over triplets (2000 resamples, seed 0):
-METHOD − BASELINE within A, the same within B, and METHOD of A − METHOD of B, paired per triplet.
+METHOD − BASELINE within A, the same within B, and METHOD of A − METHOD of B, paired per triplet,
+of METRIC (a per-view score of report.json's measurements: psnr_covered, the default,
+lpips_covered, ssim_covered, psnr, ...; for LPIPS lower is better).
 """
 import json
 import random
 import sys
 
 
-def by_triplet(path, method):
-    """METHOD's covered PSNR per triplet; a report holding METHOD at several N x D (a
+def by_triplet(path, method, metric="psnr_covered"):
+    """METHOD's METRIC per triplet; a report holding METHOD at several N x D (a
     `--sweep-grid` with more than one entry) is refused rather than mixed."""
     out, configs = {}, set()
     for m in json.load(open(path))["measurements"]:
-        if m["method"] == method and m.get("psnr_covered") is not None:
+        if m["method"] == method and m.get(metric) is not None:
             configs.add((m.get("normals"), m.get("planes")))
-            out[m["triplet"]] = m["psnr_covered"]
+            out[m["triplet"]] = m[metric]
     if len(configs) > 1:
         sys.exit(f"{path}: {method} appears at several N x D {sorted(configs)}; "
                  "compare reports with one configuration of it")
@@ -54,14 +57,16 @@ def options(args, defaults):
 
 def main():
     args = sys.argv[1:]
-    opt = options(args, {"--method": "mpi", "--baseline": "sweep"})
+    opt = options(args, {"--method": "mpi", "--baseline": "sweep", "--metric": "psnr_covered"})
     if len(args) != 2:
         sys.exit(__doc__)
     a, b = args
-    m, base = opt["--method"], opt["--baseline"]
-    print(f"A {m} - {base}: {ci(paired(by_triplet(a, m), by_triplet(a, base)))}")
-    print(f"B {m} - {base}: {ci(paired(by_triplet(b, m), by_triplet(b, base)))}")
-    print(f"A {m} - B {m}: {ci(paired(by_triplet(a, m), by_triplet(b, m)))}")
+    m, base, k = opt["--method"], opt["--baseline"], opt["--metric"]
+    of = lambda path, method: by_triplet(path, method, k)
+    print(f"{k}:")
+    print(f"A {m} - {base}: {ci(paired(of(a, m), of(a, base)))}")
+    print(f"B {m} - {base}: {ci(paired(of(b, m), of(b, base)))}")
+    print(f"A {m} - B {m}: {ci(paired(of(a, m), of(b, m)))}")
 
 
 if __name__ == "__main__":

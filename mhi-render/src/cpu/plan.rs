@@ -2,7 +2,15 @@
 //! tile skips and where each pixel stops (see the parent module's "How a render runs"), and the
 //! least share any plan within the budget must composite.
 
-use super::*;
+use glam::DMat3;
+use mhi_geom::{Camera, plane_homography};
+use rayon::prelude::*;
+
+use super::options::*;
+use super::sample::*;
+use super::weights::*;
+use crate::error::Result;
+use crate::mhi::Mhi;
 
 /// The normals a render keeps (`true`) and the largest blend weight dropped at any pixel:
 /// lightest first (by largest weight), normals are dropped while the summed weight they leave
@@ -343,13 +351,6 @@ pub(super) fn inside_span(
     (a, b)
 }
 
-/// Whether a bilinear sample at `(sx, sy)` has a tap inside the `w × h` image (otherwise it
-/// reads zero under zero padding). NaN positions touch nothing.
-#[inline(always)]
-pub(super) fn touches_image(sx: f32, sy: f32, w: usize, h: usize) -> bool {
-    sx > -1.0 && sy > -1.0 && sx < w as f32 && sy < h as f32
-}
-
 /// Where a run's samples read (`idx` from pass 1): `seen`, the texels the layer's runs read so
 /// far (lowest, one past the highest), widened to hold them; the next layer is prefetched there.
 #[inline(always)]
@@ -594,4 +595,29 @@ pub(super) fn least_share(mhi: &Mhi, target: &Camera, weights: Option<&[f32]>, b
     } else {
         1.0
     }
+}
+
+/// Per-layer warp: the target→reference homography in f32 (row-major), or `None` when the plane
+/// is invisible from the target.
+pub(crate) fn layer_homographies(mhi: &Mhi, target: &Camera) -> Vec<Option<[f32; 9]>> {
+    let ref_from_tgt = mhi.reference().from_other(target);
+    let mut out = Vec::with_capacity(mhi.n() * mhi.d());
+    for i in 0..mhi.n() {
+        for j in 0..mhi.d() {
+            let h = plane_homography(
+                &mhi.reference().intrinsics,
+                &target.intrinsics,
+                &ref_from_tgt,
+                mhi.plane(i, j),
+            )
+            .ok();
+            out.push(h.map(|h| row_major_f32(&h)));
+        }
+    }
+    out
+}
+
+pub(crate) fn row_major_f32(h: &DMat3) -> [f32; 9] {
+    let t = h.transpose().to_cols_array(); // columns of Hᵀ are rows of H
+    t.map(|v| v as f32)
 }

@@ -1,6 +1,13 @@
-use super::weights::{soft_row, soft_row_generic};
-use super::*;
+use super::kernel::*;
+use super::options::*;
+use super::plan::*;
+use super::sample::*;
+use super::weights::*;
+use crate::mhi::{LayerColor, Mhi};
+use glam::DMat3;
 use glam::DVec3;
+use image::Rgb32FImage;
+use mhi_geom::{BlendHeuristic, Camera};
 use mhi_geom::{Intrinsics, RigidTransform, depths_linear_in_disparity};
 
 #[test]

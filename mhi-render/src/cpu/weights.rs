@@ -1,6 +1,12 @@
-//! The blend weights of the paper's heuristics (Eqs. 3–4), row by row.
+//! The blend weights: the paper's heuristics (Eqs. 3–4) row by row, given weights checked and
+//! normalised, and multi-normal images combined with them.
+use glam::DVec3;
+use image::Rgb32FImage;
+use mhi_geom::{BlendHeuristic, Camera};
+use rayon::prelude::*;
 
-use super::*;
+use crate::error::{Error, Result};
+use crate::mhi::Mhi;
 
 /// Normalised heuristic weights `N × H × W` on the target grid (f32; δ in f64 per pixel).
 pub fn heuristic_weights(mhi: &Mhi, target: &Camera, heuristic: BlendHeuristic) -> Vec<f32> {
@@ -126,4 +132,51 @@ pub(super) fn soft_row_generic(
             *o = (v * s) as f32;
         }
     }
+}
+
+/// Validate given weights and normalise them per pixel.
+pub(super) fn normalised_weights(given: &[f32], n: usize, px: usize) -> Result<Vec<f32>> {
+    if given.len() != n * px {
+        return Err(Error::InvalidWeights(format!(
+            "expected {n}×{px} weights, got {}",
+            given.len()
+        )));
+    }
+    if let Some(k) = given.iter().position(|v| !v.is_finite() || *v < 0.0) {
+        return Err(Error::InvalidWeights(format!(
+            "weight {} of normal {} at pixel {} is negative or not finite",
+            given[k],
+            k / px,
+            k % px
+        )));
+    }
+    let mut out = given.to_vec();
+    for p in 0..px {
+        let s: f32 = (0..n).map(|i| given[i * px + p]).sum();
+        if !(s > 0.0) {
+            return Err(Error::InvalidWeights(format!(
+                "the weights of pixel {p} sum to zero"
+            )));
+        }
+        for i in 0..n {
+            out[i * px + p] /= s;
+        }
+    }
+    Ok(out)
+}
+
+/// `Σ_i w_i · mni_i` per pixel, with `weights` `N × H × W` (normal-major).
+pub fn combine(mni: &[Rgb32FImage], weights: &[f32]) -> Rgb32FImage {
+    let (w, h) = mni[0].dimensions();
+    let px = (w * h) as usize;
+    let mut out = Rgb32FImage::new(w, h);
+    for (i, m) in mni.iter().enumerate() {
+        let wi = &weights[i * px..(i + 1) * px];
+        for ((o, p), &k) in out.pixels_mut().zip(m.pixels()).zip(wi) {
+            for c in 0..3 {
+                o.0[c] += k * p.0[c];
+            }
+        }
+    }
+    out
 }

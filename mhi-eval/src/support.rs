@@ -169,21 +169,6 @@ pub fn median(mut v: Vec<f64>) -> f64 {
     v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
-/// The device of the tensor backend `backend`.
-pub fn device(backend: crate::run::options::Backend) -> anyhow::Result<burn::tensor::Device> {
-    match backend {
-        crate::run::options::Backend::Flex => Ok(burn::tensor::Device::flex()),
-        #[cfg(feature = "wgpu")]
-        crate::run::options::Backend::Wgpu => Ok(burn::tensor::Device::wgpu(
-            burn::tensor::DeviceKind::DefaultDevice,
-        )),
-        #[cfg(not(feature = "wgpu"))]
-        crate::run::options::Backend::Wgpu => anyhow::bail!(
-            "this build has no wgpu backend; build it with `cargo run -p xtask --features wgpu -- ...` (about 14 minutes from clean)"
-        ),
-    }
-}
-
 /// The paths the project's own kernels take on this CPU (each is chosen at run time by the
 /// CPU's features, capped by `MHI_SIMD`; docs/SPEED.md lists them).
 pub fn kernel_paths() -> String {

@@ -3,9 +3,9 @@
 //! files. No command module imports another; what two commands share lives here.
 
 pub use mhi_eval::images::{error_map, save_png};
-pub use mhi_eval::run::options::{Backend, PlaneArgs, parse_normals, parse_size};
+pub use mhi_eval::run::options::{Backend, PlaneArgs, device, parse_normals, parse_size};
 pub use mhi_eval::support::{
-    cache_dir, check_gif_frames, check_memory, device, ensure_synthetic, sample_index,
+    cache_dir, check_gif_frames, check_memory, ensure_synthetic, sample_index,
 };
 
 /// The most synthetic frames one `synth` makes (a million: about 50 GB of PNGs at 256 × 256).

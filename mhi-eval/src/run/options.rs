@@ -338,3 +338,18 @@ impl PlaneArgs {
         self.normals != 5 || self.planes != 32 || self.range.near != 1.0 || self.range.far != 100.0
     }
 }
+
+/// The device of the tensor backend `backend`.
+pub fn device(backend: Backend) -> anyhow::Result<burn::tensor::Device> {
+    match backend {
+        Backend::Flex => Ok(burn::tensor::Device::flex()),
+        #[cfg(feature = "wgpu")]
+        Backend::Wgpu => Ok(burn::tensor::Device::wgpu(
+            burn::tensor::DeviceKind::DefaultDevice,
+        )),
+        #[cfg(not(feature = "wgpu"))]
+        Backend::Wgpu => anyhow::bail!(
+            "this build has no wgpu backend; build it with `cargo run -p xtask --features wgpu -- ...` (about 14 minutes from clean)"
+        ),
+    }
+}

@@ -262,7 +262,7 @@ pub fn backend_agreement(
     use burn::module::Module as _;
     let (config, [rf, sf, tf]) = default_sample(data)?;
     let flex = Device::flex();
-    let gpu = crate::support::device(other)?;
+    let gpu = crate::run::options::device(other)?;
     let (stage1, blend) = init_models(&config, &flex);
     let tmp = tempfile::tempdir()?;
     stage1

@@ -27,7 +27,7 @@ pub enum Blend<'a> {
 ///   their blend weights stays within a third of the budget; renormalising the rest changes the
 ///   blend by at most that sum. What the normals do not use passes on: the rest of the budget
 ///   is split in half between the two other parts ([`Prune::shares_after`]);
-/// - **layers** — per render tile of [`TILE_W`] × [`TILE_H`] target pixels and per normal,
+/// - **layers** — per render tile of [`TILE_W`](crate::TILE_W) × [`TILE_H`](crate::TILE_H) target pixels and per normal,
 ///   layers are skipped (faintest there first) while the sum of their largest alphas over the
 ///   part of the reference image the tile sees stays within the layer share. Removing layers of
 ///   alphas a_j from an over-composite changes it by at most Σ a_j (each removal changes it by
@@ -127,7 +127,7 @@ pub struct RenderStats {
     /// Normals skipped within the budget's normal share.
     pub normals_pruned: usize,
     /// Share of the (tile, visible layer) pairs of the kept normals that were composited: the
-    /// render plans per tile of [`TILE_W`] × [`TILE_H`] target pixels and skips, in each tile,
+    /// render plans per tile of [`TILE_W`](crate::TILE_W) × [`TILE_H`](crate::TILE_H) target pixels and skips, in each tile,
     /// the layers that are faint over the part of them the tile sees (1 when nothing is left
     /// out).
     pub composited: f32,

@@ -504,7 +504,7 @@ pub(super) fn stop_at(tile: &TilePlan, eps: f32, share: f32) -> f32 {
 /// contributions — blend weight × transmittance × alpha of each sample, `weights` being the
 /// normalised blend weights (`N × H × W`) — and left out, per pixel, the faintest samples while
 /// their summed contributions stay within the budget. A render that charges each sample it
-/// leaves out at least that much (as [`render`] does: colours differ by at most 1, its
+/// leaves out at least that much (as [`render`](crate::render) does: colours differ by at most 1, its
 /// transmittance is never below the exact one) composites at least this share, so `1 / share`
 /// is the most leaving out can speed a view up, whatever the plan.
 ///

@@ -156,13 +156,22 @@ impl Method for Nearest {
         source: &LoadedFrame,
         target: &Camera,
     ) -> Result<Output, MethodError> {
-        let c = target.center_in_world();
-        let dr = (reference.camera.center_in_world() - c).length();
-        let ds = (source.camera.center_in_world() - c).length();
-        let near = if dr <= ds { reference } else { source };
         Ok(Output {
-            image: near.image.clone(),
+            image: nearest_input(reference, source, target).image.clone(),
             times: Times::default(),
         })
     }
+}
+
+/// Of the two inputs, the one whose camera centre is nearest `target`'s (the reference on a
+/// tie).
+pub fn nearest_input<'a>(
+    reference: &'a LoadedFrame,
+    source: &'a LoadedFrame,
+    target: &Camera,
+) -> &'a LoadedFrame {
+    let c = target.center_in_world();
+    let dr = (reference.camera.center_in_world() - c).length();
+    let ds = (source.camera.center_in_world() - c).length();
+    if dr <= ds { reference } else { source }
 }

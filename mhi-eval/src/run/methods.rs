@@ -224,14 +224,9 @@ impl Ctx<'_> {
 /// The input view nearest the target, as it is.
 fn nearest(rf: &LoadedFrame, sf: &LoadedFrame, tf: &LoadedFrame) -> Output {
     let t0 = Instant::now();
-    let c = tf.camera.center_in_world();
-    let dr = (rf.camera.center_in_world() - c).length();
-    let ds_ = (sf.camera.center_in_world() - c).length();
-    let image = if dr <= ds_ {
-        rf.image.clone()
-    } else {
-        sf.image.clone()
-    };
+    let image = crate::methods::nearest_input(rf, sf, &tf.camera)
+        .image
+        .clone();
     Output {
         method: "nearest".into(),
         normals: 0,

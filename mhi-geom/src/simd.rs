@@ -65,3 +65,87 @@ pub fn level() -> Level {
         }
     })
 }
+
+/// The instructions a build may assume beyond x86-64's own, each with whether this build does
+/// (its target features, e.g. AVX2 and FMA from the workspace's `.cargo/config.toml`).
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+const ASSUMABLE: [(&str, bool); 4] = [
+    ("avx", cfg!(target_feature = "avx")),
+    ("fma", cfg!(target_feature = "fma")),
+    ("avx2", cfg!(target_feature = "avx2")),
+    ("avx512f", cfg!(target_feature = "avx512f")),
+];
+
+/// Of `assumed` (names from [`ASSUMABLE`]), those a CPU lacks, from its `cpuid` leaf 1 ECX and
+/// leaf 7 (sub-leaf 0) EBX. AVX and all that builds on it also need the OS to save the wide
+/// registers (OSXSAVE).
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+fn lacking<'a>(assumed: &[&'a str], leaf1_ecx: u32, leaf7_ebx: u32) -> Vec<&'a str> {
+    let avx = leaf1_ecx & (1 << 27) != 0 && leaf1_ecx & (1 << 28) != 0;
+    let has = |name: &str| match name {
+        "avx" => avx,
+        "fma" => avx && leaf1_ecx & (1 << 12) != 0,
+        "avx2" => avx && leaf7_ebx & (1 << 5) != 0,
+        "avx512f" => avx && leaf7_ebx & (1 << 16) != 0,
+        _ => false,
+    };
+    assumed.iter().copied().filter(|n| !has(n)).collect()
+}
+
+/// Whether the CPU has the instructions this build was compiled to assume everywhere:
+/// `Err` names the missing ones and how to build without them.
+///
+/// [`detected`] cannot tell: `is_x86_feature_detected!` answers `true` at compile time for a
+/// feature the build assumes, so this asks the CPU itself (`cpuid`). A program built this way
+/// should call it first, before code that may use those instructions runs.
+pub fn check_build_baseline() -> Result<(), String> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{__cpuid, __cpuid_count};
+        // `cpuid` exists on every x86-64 CPU; leaf 7 is read only when leaf 0 lists it.
+        let leaf7 = if __cpuid(0).eax >= 7 {
+            __cpuid_count(7, 0).ebx
+        } else {
+            0
+        };
+        let assumed: Vec<&str> = ASSUMABLE
+            .iter()
+            .filter(|(_, built)| *built)
+            .map(|(name, _)| *name)
+            .collect();
+        let missing = lacking(&assumed, __cpuid(1).ecx, leaf7);
+        if !missing.is_empty() {
+            return Err(format!(
+                "this build assumes CPU instructions this CPU lacks ({}); rebuild for any x86-64 \
+                 CPU with RUSTFLAGS=\"\" (the workspace's .cargo/config.toml adds AVX2 and FMA)",
+                missing.join(", ")
+            ));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn this_cpu_runs_this_build() {
+        // The tests run on this CPU, so it has what the build assumes.
+        assert_eq!(check_build_baseline(), Ok(()));
+    }
+
+    #[test]
+    fn a_cpu_without_avx2_or_fma_is_named() {
+        let all = ["avx", "fma", "avx2", "avx512f"];
+        let osxsave_avx = (1 << 27) | (1 << 28);
+        // A Sandy Bridge: AVX, no FMA, no AVX2.
+        assert_eq!(lacking(&all, osxsave_avx, 0), ["fma", "avx2", "avx512f"]);
+        // A Haswell: AVX, FMA and AVX2, no AVX-512.
+        assert_eq!(lacking(&all, osxsave_avx | (1 << 12), 1 << 5), ["avx512f"]);
+        // AVX bits without the OS saving the registers count as nothing.
+        assert_eq!(lacking(&all[..3], 1 << 28 | 1 << 12, 1 << 5), all[..3]);
+        // A build that assumes nothing runs anywhere.
+        assert!(lacking(&[], 0, 0).is_empty());
+    }
+}

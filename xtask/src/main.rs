@@ -114,6 +114,11 @@ fn check_environment() -> anyhow::Result<()> {
 }
 
 fn main() {
+    // First: anything later may use the instructions the build assumes (.cargo/config.toml).
+    if let Err(e) = mhi_geom::simd::check_build_baseline() {
+        eprintln!("error: {e}");
+        std::process::exit(1);
+    }
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     keep_freed_memory();
     let task = Task::parse();

@@ -81,16 +81,25 @@ pub fn table_row(name: &str, o: &[Outcome]) -> String {
         .iter()
         .map(|o| o.rotation_deg.max(o.direction_deg))
         .collect();
+    // A median over no finite value (no pair, or every pair failed) is shown as a dash.
+    let shown = |x: f64, unit: &str| {
+        if x.is_finite() {
+            format!("{x:.2}{unit}")
+        } else {
+            "—".to_string()
+        }
+    };
+    let med = |f: fn(&Outcome) -> f64| median(&o.iter().map(f).collect::<Vec<_>>());
     format!(
-        "| {name} | {} | {:.2}° | {:.2}° | {:.2} / {:.2} / {:.2} | {} | {:.2} s |",
+        "| {name} | {} | {} | {} | {:.2} / {:.2} / {:.2} | {} | {} |",
         o.len(),
-        median(&o.iter().map(|o| o.rotation_deg).collect::<Vec<_>>()),
-        median(&o.iter().map(|o| o.direction_deg).collect::<Vec<_>>()),
+        shown(med(|o| o.rotation_deg), "°"),
+        shown(med(|o| o.direction_deg), "°"),
         auc(&worst, 5.0),
         auc(&worst, 10.0),
         auc(&worst, 20.0),
         o.iter().filter(|o| o.failed).count(),
-        median(&o.iter().map(|o| o.seconds).collect::<Vec<_>>()),
+        shown(med(|o| o.seconds), " s"),
     )
 }
 
@@ -119,5 +128,23 @@ mod tests {
         assert!(o.rotation_deg < 1e-6 && o.direction_deg < 1e-6 && !o.failed);
         let f = Outcome::of(truth.rotation(), -truth.translation(), &truth, 0.1);
         assert!((f.direction_deg - 180.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn rows_show_a_dash_where_there_is_no_median() {
+        let truth = RigidTransform::new(glam::DMat3::IDENTITY, glam::DVec3::X).unwrap();
+        let good = Outcome::of(glam::DMat3::IDENTITY, glam::DVec3::X, &truth, 0.25);
+        assert_eq!(
+            table_row("set (5), ours", &[good, Outcome::failure(0.5)]),
+            "| set (5), ours | 2 | 0.00° | 0.00° | 0.50 / 0.50 / 0.50 | 1 | 0.50 s |"
+        );
+        assert_eq!(
+            table_row("set (5), ours", &[Outcome::failure(0.5)]),
+            "| set (5), ours | 1 | — | — | 0.00 / 0.00 / 0.00 | 1 | 0.50 s |"
+        );
+        assert_eq!(
+            table_row("none", &[]),
+            "| none | 0 | — | — | 0.00 / 0.00 / 0.00 | 0 | — |"
+        );
     }
 }

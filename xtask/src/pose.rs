@@ -182,6 +182,13 @@ fn accuracy(a: &PoseArgs) -> anyhow::Result<()> {
                     pairs.push((&seq.frames[i], &seq.frames[i + gap]));
                 }
             }
+            if pairs.is_empty() {
+                eprintln!(
+                    "note: {}: no pair {gap} frames apart (every sequence has at most {gap} frames); no row",
+                    root.display()
+                );
+                continue;
+            }
             let mut ours = Vec::new();
             let mut jobs = Vec::new();
             for (fa, fb) in &pairs {

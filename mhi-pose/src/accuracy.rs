@@ -103,6 +103,35 @@ pub fn table_row(name: &str, o: &[Outcome]) -> String {
     )
 }
 
+/// A markdown table row comparing two methods on the pairs both solved (the medians of
+/// [`table_row`] are over each method's own successes, so a method that gives up on the hard
+/// pairs looks better there): the count, then the median rotation and direction errors of `a`
+/// and `b` on those pairs.
+pub fn both_solved_row(name: &str, a: &[Outcome], b: &[Outcome]) -> String {
+    let (x, y): (Vec<Outcome>, Vec<Outcome>) = a
+        .iter()
+        .zip(b)
+        .filter(|(x, y)| !x.failed && !y.failed)
+        .map(|(x, y)| (*x, *y))
+        .unzip();
+    let med = |o: &[Outcome], f: fn(&Outcome) -> f64| {
+        let m = median(&o.iter().map(f).collect::<Vec<_>>());
+        if m.is_finite() {
+            format!("{m:.2}°")
+        } else {
+            "—".to_string()
+        }
+    };
+    format!(
+        "| {name} | {} | {} / {} | {} / {} |",
+        x.len(),
+        med(&x, |o| o.rotation_deg),
+        med(&y, |o| o.rotation_deg),
+        med(&x, |o| o.direction_deg),
+        med(&y, |o| o.direction_deg),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -128,6 +157,30 @@ mod tests {
         assert!(o.rotation_deg < 1e-6 && o.direction_deg < 1e-6 && !o.failed);
         let f = Outcome::of(truth.rotation(), -truth.translation(), &truth, 0.1);
         assert!((f.direction_deg - 180.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn both_solved_compares_only_the_pairs_neither_failed() {
+        let truth = RigidTransform::new(glam::DMat3::IDENTITY, glam::DVec3::X).unwrap();
+        let tilted = |deg: f64| {
+            Outcome::of(
+                glam::DMat3::from_rotation_y(deg.to_radians()),
+                glam::DVec3::X,
+                &truth,
+                0.1,
+            )
+        };
+        // `a` solves all three (1°, 2°, 30°); `b` fails the third and solves the others at 3°.
+        let a = [tilted(1.0), tilted(2.0), tilted(30.0)];
+        let b = [tilted(3.0), tilted(3.0), Outcome::failure(0.1)];
+        assert_eq!(
+            both_solved_row("s (5)", &a, &b),
+            "| s (5) | 2 | 2.00° / 3.00° | 0.00° / 0.00° |"
+        );
+        assert_eq!(
+            both_solved_row("s (5)", &[Outcome::failure(0.1)], &b[..1]),
+            "| s (5) | 0 | — / — | — / — |"
+        );
     }
 
     #[test]

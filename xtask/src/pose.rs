@@ -8,7 +8,7 @@ use anyhow::{Context, bail};
 use clap::Args;
 use mhi_data::{CameraFile, CameraRow};
 use mhi_geom::RigidTransform;
-use mhi_pose::accuracy::{Outcome, table_row};
+use mhi_pose::accuracy::{Outcome, both_solved_row, table_row};
 use mhi_pose::{Options, Photo, PosedPair};
 
 /// Intrinsics options, shared by `pose`, `render` and `export`.
@@ -167,6 +167,7 @@ fn accuracy(a: &PoseArgs) -> anyhow::Result<()> {
     println!(
         "| set (gap) | pairs | median rotation error | median direction error | AUC 5° / 10° / 20° | failures | time per pair |\n|---|---:|---:|---:|---|---:|---:|"
     );
+    let mut both = Vec::new();
     for root in &a.data {
         let ds = mhi_data::Dataset::open(root, &a.split, 3)?;
         for &gap in &a.gap {
@@ -266,7 +267,16 @@ fn accuracy(a: &PoseArgs) -> anyhow::Result<()> {
                     })
                     .collect();
                 println!("{}", table_row(&format!("{name}, OpenCV"), &outcomes));
+                both.push(both_solved_row(&name, &ours, &outcomes));
             }
+        }
+    }
+    if !both.is_empty() {
+        println!(
+            "\nOn the pairs both solved (each median above is over its own successes):\n\n| set (gap) | pairs | median rotation error, ours / OpenCV | median direction error, ours / OpenCV |\n|---|---:|---:|---:|"
+        );
+        for row in both {
+            println!("{row}");
         }
     }
     Ok(())

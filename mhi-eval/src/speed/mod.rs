@@ -76,7 +76,9 @@ pub struct BenchArgs {
     pub data: PathBuf,
     /// Also time the pruned render on this trained run's MHI of the same triplet, as `eval` and
     /// `render` render it: the N multi-normal images, each within the budget, before the
-    /// blending network (e.g. models/mhi-n5d16).
+    /// blending network (e.g. models/mhi-n5d16). With --train-step: time whole training steps of
+    /// this run's configuration (its config.json) instead of the default model's parts, against
+    /// the run twin `xtask/scripts/train_step_torch.py` as --peer.
     #[arg(long)]
     pub run: Option<PathBuf>,
     /// Weights cache for --train-step's VGG loss (default: $MHI_CACHE, else ~/.cache/mhi).
@@ -399,27 +401,54 @@ fn read_bandwidth() -> f64 {
 /// --peer.
 fn train_step_bench(a: &BenchArgs) -> anyhow::Result<()> {
     let weights = crate::support::cache_dir(a.cache.as_deref()).join("weights");
+    // With --run, whole steps of that run's configuration against the run twin; else the
+    // default model's parts against its twin.
+    let ours = || match &a.run {
+        Some(run) => step::run_step(run, &a.data, &weights, a.runs),
+        None => step::train_step(&a.data, &weights, a.runs),
+    };
     let Some(peer) = &a.peer else {
-        let v = step::train_step(&a.data, &weights, a.runs)?;
-        return write_json(a, &v);
+        return write_json(a, &ours()?);
     };
     if a.rounds == 0 {
         bail!("--rounds 0: at least one round of this step and the peer's is needed for a ratio");
     }
+    let parts: &[(&str, &str)] = if a.run.is_some() {
+        &[
+            (
+                "step_ms",
+                "phase-1 step of the run's configuration (no cost volume)",
+            ),
+            ("stage1_ms", "stage 1 forward (with prior and colour)"),
+            ("backward_ms", "backward + clip + Adam"),
+        ]
+    } else {
+        &[
+            ("step", "phase-1 step (stage 1 + warp + loss, fwd+bwd)"),
+            ("stage1_inference", "stage 1 inference"),
+        ]
+    };
     // Rounds of our step then the peer's, alternating (as the render's): a swing of the
     // shared machine's speed falls on both sides of a round.
-    let mut rounds = Vec::with_capacity(a.rounds);
+    let mut rounds: Vec<Vec<f64>> = Vec::with_capacity(a.rounds);
     let mut v = serde_json::Value::Null;
     for r in 0..a.rounds {
         println!("\n== round {}/{} ==", r + 1, a.rounds);
-        v = step::train_step(&a.data, &weights, a.runs)?;
-        let torch = step::peer_train_step(&a.python, peer, a.threads, a.runs, &v)?;
-        let ratio = |key: &str| {
-            torch["ratio_burn_over_torch"][key]
-                .as_f64()
-                .unwrap_or(f64::NAN)
+        v = ours()?;
+        let torch = match &a.run {
+            Some(run) => step::peer_run_step(&a.python, peer, run, a.threads, a.runs, &v)?,
+            None => step::peer_train_step(&a.python, peer, a.threads, a.runs, &v)?,
         };
-        rounds.push([ratio("step"), ratio("stage1_inference")]);
+        rounds.push(
+            parts
+                .iter()
+                .map(|(key, _)| {
+                    torch["ratio_burn_over_torch"][key]
+                        .as_f64()
+                        .unwrap_or(f64::NAN)
+                })
+                .collect(),
+        );
         v["peer"] = torch;
     }
     println!(
@@ -427,19 +456,13 @@ fn train_step_bench(a: &BenchArgs) -> anyhow::Result<()> {
         a.rounds
     );
     let mut summary = serde_json::Map::new();
-    for (part, (key, label)) in [
-        ("step", "phase-1 step (stage 1 + warp + loss, fwd+bwd)"),
-        ("stage1_inference", "stage 1 inference"),
-    ]
-    .into_iter()
-    .enumerate()
-    {
+    for (part, (key, label)) in parts.iter().enumerate() {
         let ratios: Vec<f64> = rounds.iter().map(|r| r[part]).collect();
         let (ci, coverage) = crate::stats::median_interval(&ratios, 0.95)
             .context("the peer or this step gave a non-finite time")?;
         let m = median(ratios.clone());
         println!(
-            "  {label:<48} {m:.2}x ({:.0} % interval {:.2}–{:.2}x; rounds {})",
+            "  {label:<58} {m:.2}x ({:.0} % interval {:.2}–{:.2}x; rounds {})",
             100.0 * coverage,
             ci[0],
             ci[1],
@@ -450,7 +473,7 @@ fn train_step_bench(a: &BenchArgs) -> anyhow::Result<()> {
                 .join(", ")
         );
         summary.insert(
-            key.into(),
+            (*key).into(),
             serde_json::json!({ "median": m, "interval": ci, "coverage": coverage, "rounds": ratios }),
         );
     }

@@ -133,6 +133,165 @@ pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<se
     }))
 }
 
+/// Whole phase-1 training steps of a run's configuration (its `config.json`: stage 1, planes,
+/// size, prior, colour head, loss), as `train` takes them: a fresh trainer with random weights on
+/// the synthetic data `data`, two warm-up steps, then `runs` steps; the median of each part of
+/// [`mhi_net::StepTimes`] and of the step without its cost volume (the part the PyTorch twin,
+/// `xtask/scripts/train_step_torch.py`, does the same work for).
+///
+/// # Errors
+/// An unreadable run, a perceptual run without the VGG16 weights in `weights`, or a failed step.
+pub fn run_step(
+    run: &Path,
+    data: &Path,
+    weights: &Path,
+    runs: usize,
+) -> anyhow::Result<serde_json::Value> {
+    use anyhow::Context as _;
+    use burn::module::Module as _;
+    crate::support::ensure_synthetic(data)?;
+    let mut config = mhi_net::RunDir::new(run)
+        .config()
+        .with_context(|| format!("--run {}", run.display()))?;
+    // The run's recipe on this machine's synthetic data, with as little validation as allowed.
+    config.data.clear();
+    config.val_samples = 1;
+    let device = Device::flex().autodiff();
+    let loss = match config.loss_kind {
+        mhi_net::loss::LossKind::Photometric => TrainLoss::Photometric,
+        mhi_net::loss::LossKind::L1 => TrainLoss::L1,
+        mhi_net::loss::LossKind::Perceptual => {
+            match TrainLoss::from_weights(Some(weights), config.perceptual_weight, &device) {
+                (l, None) => l,
+                (_, Some(why)) => {
+                    anyhow::bail!("{}: the perceptual loss needs VGG16 ({why})", run.display())
+                }
+            }
+        }
+    };
+    let tmp = tempfile::tempdir()?;
+    let mut trainer = mhi_net::Trainer::new(config, &tmp.path().join("run"), data, loss, device)?;
+    let params = trainer.stage1().num_params();
+    let mut rows = Vec::with_capacity(runs);
+    for i in 0..runs.max(1) + 2 {
+        let r = trainer.step()?;
+        if i >= 2 {
+            rows.push(r.times);
+        }
+    }
+    let med = |f: fn(&mhi_net::StepTimes) -> f64| super::median(rows.iter().map(f).collect());
+    let parts = [
+        (
+            "volume_ms",
+            "cost volume and its loading (CPU)",
+            med(|t| t.volume_ms),
+        ),
+        (
+            "stage1_ms",
+            "stage 1 forward (and prior, colour)",
+            med(|t| t.stage1_ms),
+        ),
+        ("render_ms", "warp + composite", med(|t| t.render_ms)),
+        ("loss_ms", "loss forward", med(|t| t.loss_ms)),
+        (
+            "backward_ms",
+            "backward + clip + Adam",
+            med(|t| t.backward_ms),
+        ),
+        (
+            "step_ms",
+            "step without the cost volume",
+            med(|t| t.stage1_ms + t.render_ms + t.loss_ms + t.backward_ms),
+        ),
+    ];
+    let c = trainer.config();
+    println!(
+        "whole phase-1 steps of {}: N={} D={} {}x{}, stage 1 at 1/{} with {} parameters, loss {}, median of {runs} after 2 warm-up steps (flex backend, {} threads)",
+        run.display(),
+        c.stage1.normals,
+        c.planes,
+        c.width,
+        c.height,
+        c.stage1.scale.max(1),
+        params,
+        c.loss,
+        rayon::current_num_threads()
+    );
+    let mut v = serde_json::json!({ "run": run, "runs": runs, "params": params });
+    for (key, label, ms) in parts {
+        println!("  {label:<40} {ms:>8.1} ms");
+        v[key] = serde_json::json!(ms);
+    }
+    Ok(v)
+}
+
+/// The run-configuration twin (`xtask/scripts/train_step_torch.py --config RUN/config.json`) on
+/// the same threads and runs: its JSON, with the ratios burn / PyTorch per part added and
+/// printed.
+pub fn peer_run_step(
+    python: &str,
+    peer: &Path,
+    run: &Path,
+    threads: usize,
+    runs: usize,
+    ours: &serde_json::Value,
+) -> anyhow::Result<serde_json::Value> {
+    use anyhow::Context as _;
+    let tmp = tempfile::tempdir()?;
+    let out_json = tmp.path().join("peer.json");
+    println!("running the PyTorch twin {} ...", peer.display());
+    let status = std::process::Command::new(python)
+        .arg(peer)
+        .arg("--config")
+        .arg(mhi_net::RunDir::new(run).config_path())
+        .args([
+            "--threads",
+            &threads.to_string(),
+            "--runs",
+            &runs.to_string(),
+        ])
+        .arg("--json")
+        .arg(&out_json)
+        .status()
+        .with_context(|| format!("cannot start {python} {}", peer.display()))?;
+    if !status.success() {
+        anyhow::bail!(
+            "the twin {} failed ({status}); it needs `pip install torch`",
+            peer.display()
+        );
+    }
+    let text = std::fs::read_to_string(&out_json)
+        .with_context(|| format!("the twin wrote no {}", out_json.display()))?;
+    let mut torch: serde_json::Value = serde_json::from_str(text.trim())
+        .with_context(|| format!("the twin's JSON in {}", out_json.display()))?;
+    println!(
+        "\n{:<28} {:>10} {:>10} {:>8}",
+        "part", "burn ms", "torch ms", "ratio"
+    );
+    let mut ratios = serde_json::Map::new();
+    for key in [
+        "volume_ms",
+        "stage1_ms",
+        "render_ms",
+        "loss_ms",
+        "backward_ms",
+        "step_ms",
+    ] {
+        let (b, t) = (
+            ours[key].as_f64().unwrap_or(f64::NAN),
+            torch[key].as_f64().unwrap_or(f64::NAN),
+        );
+        println!(
+            "{:<28} {b:>10.1} {t:>10.1} {:>7.2}x",
+            key.trim_end_matches("_ms"),
+            b / t
+        );
+        ratios.insert(key.into(), serde_json::json!(b / t));
+    }
+    torch["ratio_burn_over_torch"] = serde_json::Value::Object(ratios);
+    Ok(torch)
+}
+
 /// The median time (ms) of a forward pass on the autodiff device, after one warm-up: `f` runs
 /// the forward and returns its scalar output, timed until the output's value is read; a backward
 /// pass from that output then releases the graph, outside the timed region.
@@ -360,4 +519,89 @@ pub fn backend_agreement(
         "backend": other.to_string(), "flex_ms": t_flex, "other_ms": t_gpu,
         "max_alpha_diff": da, "max_image_diff": di, "nonfinite": nonfinite,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `run_step` times a run's own configuration (a tiny one here: sweep prior, colour head,
+    /// stage 1 on 2 × 2 blocks) and only reads the run.
+    #[test]
+    fn run_step_times_a_runs_configuration_and_leaves_the_run_alone() {
+        let synth = tempfile::tempdir().unwrap();
+        mhi_data::generate(
+            &mhi_data::SynthConfig {
+                scenes: 2,
+                frames: 7,
+                width: 32,
+                height: 32,
+                test_fraction: 0.5,
+                ..mhi_data::SynthConfig::default()
+            },
+            synth.path(),
+            &|| {},
+        )
+        .unwrap();
+        let mut c = TrainConfig::for_normals(3);
+        (c.width, c.height, c.planes) = (32, 32, 4);
+        c.stage1.unet.width = 4;
+        c.stage1.unet.levels = 1;
+        c.stage1.unet.dilations = vec![2];
+        c.stage1.unet.colour_head = true;
+        c.stage1.scale = 2;
+        c.blend.width = 4;
+        c.blend.levels = 1;
+        c.val_samples = 1;
+        let c = c.with_sweep_prior();
+        let runs = tempfile::tempdir().unwrap();
+        let run = runs.path().join("run");
+        let params = {
+            use burn::module::Module as _;
+            let t = mhi_net::Trainer::new(
+                c,
+                &run,
+                synth.path(),
+                TrainLoss::Photometric,
+                Device::flex().autodiff(),
+            )
+            .unwrap();
+            t.stage1().num_params()
+        };
+        let listing = |dir: &Path| {
+            let mut v: Vec<_> = walkdir(dir);
+            v.sort();
+            v
+        };
+        let before = listing(&run);
+        let v = run_step(&run, synth.path(), Path::new("/nonexistent"), 1).unwrap();
+        assert_eq!(v["params"].as_u64(), Some(params as u64));
+        for key in [
+            "volume_ms",
+            "stage1_ms",
+            "render_ms",
+            "loss_ms",
+            "backward_ms",
+            "step_ms",
+        ] {
+            let ms = v[key].as_f64().unwrap();
+            assert!(ms.is_finite() && ms > 0.0, "{key}: {ms}");
+        }
+        assert_eq!(listing(&run), before, "the run was written to");
+    }
+
+    /// Every file under `dir` with its size and modification time.
+    fn walkdir(dir: &Path) -> Vec<(std::path::PathBuf, u64, std::time::SystemTime)> {
+        let mut out = Vec::new();
+        for e in std::fs::read_dir(dir).unwrap() {
+            let e = e.unwrap();
+            let m = e.metadata().unwrap();
+            if m.is_dir() {
+                out.extend(walkdir(&e.path()));
+            } else {
+                out.push((e.path(), m.len(), m.modified().unwrap()));
+            }
+        }
+        out
+    }
 }

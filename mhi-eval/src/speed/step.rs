@@ -236,12 +236,9 @@ pub fn peer_run_step(
     runs: usize,
     ours: &serde_json::Value,
 ) -> anyhow::Result<serde_json::Value> {
-    use anyhow::Context as _;
-    let tmp = tempfile::tempdir()?;
-    let out_json = tmp.path().join("peer.json");
     println!("running the PyTorch twin {} ...", peer.display());
-    let status = std::process::Command::new(python)
-        .arg(peer)
+    let mut cmd = std::process::Command::new(python);
+    cmd.arg(peer)
         .arg("--config")
         .arg(mhi_net::RunDir::new(run).config_path())
         .args([
@@ -249,21 +246,8 @@ pub fn peer_run_step(
             &threads.to_string(),
             "--runs",
             &runs.to_string(),
-        ])
-        .arg("--json")
-        .arg(&out_json)
-        .status()
-        .with_context(|| format!("cannot start {python} {}", peer.display()))?;
-    if !status.success() {
-        anyhow::bail!(
-            "the twin {} failed ({status}); it needs `pip install torch`",
-            peer.display()
-        );
-    }
-    let text = std::fs::read_to_string(&out_json)
-        .with_context(|| format!("the twin wrote no {}", out_json.display()))?;
-    let mut torch: serde_json::Value = serde_json::from_str(text.trim())
-        .with_context(|| format!("the twin's JSON in {}", out_json.display()))?;
+        ]);
+    let mut torch = super::run_peer_json(&mut cmd, peer)?;
     println!(
         "\n{:<28} {:>10} {:>10} {:>8}",
         "part", "burn ms", "torch ms", "ratio"

@@ -292,11 +292,13 @@ fn an_interrupted_render_leaves_the_old_output_whole() {
         .map(|n| (n.clone(), std::fs::read(out.join(&n)).unwrap()))
         .collect();
     for signal in ["-INT", "-KILL"] {
-        // Many orbit frames keep it busy long enough to be interrupted while it writes.
+        // Many orbit frames at a size well above the scene's keep it busy long enough (seconds)
+        // to be interrupted while it writes, even on a loaded machine where this thread may
+        // wait a while between polls (CI once saw 900 frames at 64 × 48 finish first).
         let args = s.render(
             "render",
             &o,
-            &["--overwrite", "--frames", "900", "--size", "64x48"],
+            &["--overwrite", "--frames", "900", "--size", "192x144"],
         );
         let mut child = Command::new(env!("CARGO_BIN_EXE_xtask"))
             .args(&args)

@@ -277,8 +277,10 @@ fn a_second_writer_is_refused_naming_the_first() {
     ok(&s.render("render", o, &["--overwrite"]));
 }
 
-/// A render killed mid-write (SIGINT, then SIGKILL on the rerun's predecessor) leaves the
+/// A render killed mid-write (SIGTERM, then SIGKILL on the rerun's predecessor) leaves the
 /// previous output whole, and the next run says what it found and removes the partial folder.
+/// Not SIGINT: a shell starts background jobs with SIGINT ignored, and a test binary run from
+/// one (a CI script started with `&`) passes that on, so the render would finish instead.
 #[cfg(unix)]
 #[test]
 fn an_interrupted_render_leaves_the_old_output_whole() {
@@ -291,7 +293,7 @@ fn an_interrupted_render_leaves_the_old_output_whole() {
         .filter(|n| !n.starts_with(".mhi-lock"))
         .map(|n| (n.clone(), std::fs::read(out.join(&n)).unwrap()))
         .collect();
-    for signal in ["-INT", "-KILL"] {
+    for signal in ["-TERM", "-KILL"] {
         // Many orbit frames at a size well above the scene's keep it busy long enough (seconds)
         // to be interrupted while it writes, even on a loaded machine where this thread may
         // wait a while between polls (CI once saw 900 frames at 64 × 48 finish first).

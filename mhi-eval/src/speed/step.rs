@@ -133,6 +133,17 @@ pub fn train_step(data: &Path, weights: &Path, runs: usize) -> anyhow::Result<se
     }))
 }
 
+/// The parts [`run_step`] reports (its JSON keys, also the twin's) and their labels, in the
+/// order of [`mhi_net::StepTimes`]; the last is the step without its cost volume.
+pub const RUN_STEP_PARTS: [(&str, &str); 6] = [
+    ("volume_ms", "cost volume and its loading (CPU)"),
+    ("stage1_ms", "stage 1 forward (and prior, colour)"),
+    ("render_ms", "warp + composite"),
+    ("loss_ms", "loss forward"),
+    ("backward_ms", "backward + clip + Adam"),
+    ("step_ms", "step without the cost volume"),
+];
+
 /// Whole phase-1 training steps of a run's configuration (its `config.json`: stage 1, planes,
 /// size, prior, colour head, loss), as `train` takes them: a fresh trainer with random weights on
 /// the synthetic data `data`, two warm-up steps, then `runs` steps; the median of each part of
@@ -180,29 +191,13 @@ pub fn run_step(
         }
     }
     let med = |f: fn(&mhi_net::StepTimes) -> f64| super::median(rows.iter().map(f).collect());
-    let parts = [
-        (
-            "volume_ms",
-            "cost volume and its loading (CPU)",
-            med(|t| t.volume_ms),
-        ),
-        (
-            "stage1_ms",
-            "stage 1 forward (and prior, colour)",
-            med(|t| t.stage1_ms),
-        ),
-        ("render_ms", "warp + composite", med(|t| t.render_ms)),
-        ("loss_ms", "loss forward", med(|t| t.loss_ms)),
-        (
-            "backward_ms",
-            "backward + clip + Adam",
-            med(|t| t.backward_ms),
-        ),
-        (
-            "step_ms",
-            "step without the cost volume",
-            med(|t| t.stage1_ms + t.render_ms + t.loss_ms + t.backward_ms),
-        ),
+    let values = [
+        med(|t| t.volume_ms),
+        med(|t| t.stage1_ms),
+        med(|t| t.render_ms),
+        med(|t| t.loss_ms),
+        med(|t| t.backward_ms),
+        med(|t| t.stage1_ms + t.render_ms + t.loss_ms + t.backward_ms),
     ];
     let c = trainer.config();
     println!(
@@ -218,7 +213,7 @@ pub fn run_step(
         rayon::current_num_threads()
     );
     let mut v = serde_json::json!({ "run": run, "runs": runs, "params": params });
-    for (key, label, ms) in parts {
+    for ((key, label), ms) in RUN_STEP_PARTS.into_iter().zip(values) {
         println!("  {label:<40} {ms:>8.1} ms");
         v[key] = serde_json::json!(ms);
     }
@@ -253,14 +248,7 @@ pub fn peer_run_step(
         "part", "burn ms", "torch ms", "ratio"
     );
     let mut ratios = serde_json::Map::new();
-    for key in [
-        "volume_ms",
-        "stage1_ms",
-        "render_ms",
-        "loss_ms",
-        "backward_ms",
-        "step_ms",
-    ] {
+    for (key, _) in RUN_STEP_PARTS {
         let (b, t) = (
             ours[key].as_f64().unwrap_or(f64::NAN),
             torch[key].as_f64().unwrap_or(f64::NAN),
@@ -552,40 +540,29 @@ mod tests {
             .unwrap();
             t.stage1().num_params()
         };
-        let listing = |dir: &Path| {
-            let mut v: Vec<_> = walkdir(dir);
-            v.sort();
-            v
-        };
-        let before = listing(&run);
+        let before = files_under(&run);
         let v = run_step(&run, synth.path(), Path::new("/nonexistent"), 1).unwrap();
         assert_eq!(v["params"].as_u64(), Some(params as u64));
-        for key in [
-            "volume_ms",
-            "stage1_ms",
-            "render_ms",
-            "loss_ms",
-            "backward_ms",
-            "step_ms",
-        ] {
+        for (key, _) in RUN_STEP_PARTS {
             let ms = v[key].as_f64().unwrap();
             assert!(ms.is_finite() && ms > 0.0, "{key}: {ms}");
         }
-        assert_eq!(listing(&run), before, "the run was written to");
+        assert_eq!(files_under(&run), before, "the run was written to");
     }
 
-    /// Every file under `dir` with its size and modification time.
-    fn walkdir(dir: &Path) -> Vec<(std::path::PathBuf, u64, std::time::SystemTime)> {
+    /// Every file under `dir` with its size and modification time, sorted.
+    fn files_under(dir: &Path) -> Vec<(std::path::PathBuf, u64, std::time::SystemTime)> {
         let mut out = Vec::new();
         for e in std::fs::read_dir(dir).unwrap() {
             let e = e.unwrap();
             let m = e.metadata().unwrap();
             if m.is_dir() {
-                out.extend(walkdir(&e.path()));
+                out.extend(files_under(&e.path()));
             } else {
                 out.push((e.path(), m.len(), m.modified().unwrap()));
             }
         }
+        out.sort();
         out
     }
 }

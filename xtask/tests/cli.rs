@@ -1455,3 +1455,97 @@ fn eval_scores_renders_from_files_and_refuses_incomplete_ones() {
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert!(md.contains("| truth | not measured here"), "{md}");
 }
+
+/// `eval --poses estimated` estimates each triplet's source pose from the frames and records,
+/// per triplet, how far it is from the true one; on clean synthetic frames it is close.
+#[test]
+fn eval_with_estimated_poses_records_each_triplets_pose_error() {
+    let d = tempfile::tempdir().unwrap();
+    let config = SynthConfig {
+        scenes: 1,
+        frames: 6,
+        width: 512,
+        height: 384,
+        seed: 11,
+        test_fraction: 1.0,
+        val_fraction: 0.0,
+        ..SynthConfig::default()
+    };
+    generate(&config, d.path(), &|| {}).unwrap();
+    let out = d.path().join("report");
+    let o = xtask(&[
+        "eval",
+        "--data",
+        d.path().to_str().unwrap(),
+        "--methods",
+        "sweep",
+        "--sweep-grid",
+        "1x2",
+        "--size",
+        "64x48",
+        "--samples",
+        "0",
+        "--orbit-frames",
+        "0",
+        "--poses",
+        "estimated",
+        "--out",
+        out.to_str().unwrap(),
+        "--cache",
+        d.path().join("no-cache").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let meta = &v["meta"];
+    let errors = meta["pose_errors"].as_array().unwrap();
+    assert_eq!(
+        errors.len() as u64,
+        meta["triplets"].as_u64().unwrap(),
+        "{meta}"
+    );
+    let solved: Vec<&serde_json::Value> = errors
+        .iter()
+        .filter(|e| !e["rotation_deg"].is_null())
+        .collect();
+    assert!(!solved.is_empty(), "{meta}");
+    for e in &solved {
+        assert!(e["rotation_deg"].as_f64().unwrap() < 2.0, "{e}");
+        assert!(e["direction_deg"].as_f64().unwrap() < 15.0, "{e}");
+        assert!(e["baseline"].as_f64().unwrap() > 0.0, "{e}");
+        assert_ne!(e["reference"], e["source"], "{e}");
+    }
+    let failed = errors.len() - solved.len();
+    assert!(
+        meta["poses"].as_str().unwrap().contains(&format!(
+            "{failed} of {} triplets kept the true pose",
+            errors.len()
+        )),
+        "{meta}"
+    );
+    // With the dataset's cameras, no pose errors are recorded.
+    let given = d.path().join("given");
+    let o = xtask(&[
+        "eval",
+        "--data",
+        d.path().to_str().unwrap(),
+        "--methods",
+        "sweep",
+        "--sweep-grid",
+        "1x2",
+        "--size",
+        "64x48",
+        "--samples",
+        "0",
+        "--orbit-frames",
+        "0",
+        "--out",
+        given.to_str().unwrap(),
+        "--cache",
+        d.path().join("no-cache").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(given.join("report.json")).unwrap()).unwrap();
+    assert!(v["meta"].get("pose_errors").is_none(), "{}", v["meta"]);
+}

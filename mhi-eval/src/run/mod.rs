@@ -143,6 +143,26 @@ struct Meta {
     orbit_rotation_deg: Option<f64>,
     /// Renders scored from files (`--renders NAME=DIR`): name and folder.
     renders: Vec<(String, String)>,
+    /// With `--poses estimated`: each triplet's estimated source pose against the true one.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pose_errors: Vec<PoseError>,
+}
+
+/// One triplet's estimated relative pose (source from reference) against the dataset's.
+#[derive(Serialize)]
+struct PoseError {
+    triplet: usize,
+    sequence: String,
+    reference: usize,
+    source: usize,
+    /// Degrees; `None` when there was no estimate (the true pose was kept).
+    rotation_deg: Option<f64>,
+    /// The angle between the estimated and the true translation directions, in degrees.
+    direction_deg: Option<f64>,
+    /// The true baseline, in the dataset's units.
+    baseline: f64,
+    /// The estimate's median parallax once the rotation is removed, in degrees.
+    median_parallax_deg: Option<f64>,
 }
 
 #[derive(Serialize)]
@@ -223,7 +243,7 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
     let mut orbit_rotation = None;
     let mut sample_md = String::new();
     let mut sizes_used = Vec::new();
-    let mut pose_failures = 0usize;
+    let mut pose_errors: Vec<PoseError> = Vec::new();
     for (ti, t) in index.triplets.iter().enumerate() {
         let seq = ds
             .sequence(&t.sequence)
@@ -232,7 +252,7 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
         if !sizes_used.contains(&size) {
             sizes_used.push(size);
         }
-        let (rf, sf, tf) = load_triplet(a, seq, t, size, ti, &mut pose_failures)?;
+        let (rf, sf, tf) = load_triplet(a, seq, t, size, ti, &mut pose_errors)?;
         if ti == 0 {
             warm_up(&ctx, (&rf, &sf, &tf), seq)?;
             pb.inc(1);
@@ -288,7 +308,7 @@ fn evaluate(a: &EvalArgs) -> anyhow::Result<()> {
         &models,
         &sizes_used,
         (lpips_net.is_some(), &weights_dir),
-        pose_failures,
+        pose_errors,
         (sweep_config, boot),
         orbit_rotation,
     );
@@ -360,7 +380,7 @@ fn report_meta(
     models: &[Loaded],
     sizes_used: &[(u32, u32)],
     (lpips, weights_dir): (bool, &Path),
-    pose_failures: usize,
+    pose_errors: Vec<PoseError>,
     (sweep_config, boot): (SweepConfig, Bootstrap),
     orbit_rotation: Option<f64>,
 ) -> Meta {
@@ -401,7 +421,8 @@ fn report_meta(
         poses: match a.poses {
             options::PoseArg::Given => "given (the dataset's cameras)".into(),
             options::PoseArg::Estimated => format!(
-                "estimated from the frames by mhi-pose with the dataset's intrinsics, the translation scaled to the true baseline; {pose_failures} of {} triplets kept the true pose (no estimate)",
+                "estimated from the frames by mhi-pose with the dataset's intrinsics, the translation scaled to the true baseline; {} of {} triplets kept the true pose (no estimate); each triplet's errors in pose_errors",
+                pose_errors.iter().filter(|e| e.rotation_deg.is_none()).count(),
                 index.triplets.len()
             ),
         },
@@ -417,34 +438,61 @@ fn report_meta(
             .iter()
             .map(|(n, d)| (n.clone(), d.display().to_string()))
             .collect(),
+        pose_errors,
     }
 }
 
 /// A triplet's three frames at `size`; with --poses estimated, the source's camera estimated
-/// from the frames (the true one kept, counted in `pose_failures` and said, when that fails).
+/// from the frames (the true one kept, and said, when that fails), its errors pushed to
+/// `pose_errors`.
 fn load_triplet(
     a: &EvalArgs,
     seq: &mhi_data::Sequence,
     t: &mhi_data::Triplet,
     size: (u32, u32),
     ti: usize,
-    pose_failures: &mut usize,
+    pose_errors: &mut Vec<PoseError>,
 ) -> anyhow::Result<(LoadedFrame, LoadedFrame, LoadedFrame)> {
     let load = |i: usize| -> anyhow::Result<LoadedFrame> {
         Ok(load_frame(&seq.frames[i], Some(size), Fit::Stretch)?)
     };
     let (rf, mut sf, tf) = (load(t.reference)?, load(t.source)?, load(t.target)?);
     if a.poses == options::PoseArg::Estimated {
-        match estimated_source(&seq.frames[t.reference], &seq.frames[t.source], &rf, &sf) {
-            Ok(cam) => sf.camera = cam,
+        let truth = sf
+            .camera
+            .cam_from_world
+            .compose(&rf.camera.cam_from_world.inverse());
+        let mut record = PoseError {
+            triplet: ti,
+            sequence: seq.name.clone(),
+            reference: t.reference,
+            source: t.source,
+            rotation_deg: None,
+            direction_deg: None,
+            baseline: truth.translation().length(),
+            median_parallax_deg: None,
+        };
+        match estimated_source(&seq.frames[t.reference], &seq.frames[t.source], &truth) {
+            Ok((src_from_ref, parallax)) => {
+                let o = mhi_pose::accuracy::Outcome::of(
+                    src_from_ref.rotation(),
+                    src_from_ref.translation(),
+                    &truth,
+                    0.0,
+                );
+                record.rotation_deg = Some(o.rotation_deg);
+                record.direction_deg = Some(o.direction_deg);
+                record.median_parallax_deg = Some(parallax);
+                sf.camera.cam_from_world = src_from_ref.compose(&rf.camera.cam_from_world);
+            }
             Err(e) => {
-                *pose_failures += 1;
                 eprintln!(
                     "warning: triplet {ti}: no estimated pose ({}); it keeps the true one",
                     mhi_data::sanitize::for_terminal(&format!("{e:#}"))
                 );
             }
         }
+        pose_errors.push(record);
     }
     Ok((rf, sf, tf))
 }
@@ -1112,12 +1160,13 @@ fn print_summary(rows: &[Row], comparisons: &[Comparison]) {
 /// The source camera with the pose `mhi-pose` estimates from the two frames' pixels (their
 /// known intrinsics), its translation scaled to the true baseline's length; the reference
 /// keeps its true pose, so the target's true pose relative to it stands.
+/// The source-from-reference pose estimated from the two frames, its translation scaled to the
+/// length of `truth`'s, and the estimate's median parallax (degrees).
 fn estimated_source(
     reference: &mhi_data::Frame,
     source: &mhi_data::Frame,
-    rf: &LoadedFrame,
-    sf: &LoadedFrame,
-) -> anyhow::Result<mhi_geom::Camera> {
+    truth: &mhi_geom::RigidTransform,
+) -> anyhow::Result<(mhi_geom::RigidTransform, f64)> {
     let (pa, pb) = (
         mhi_pose::Photo::open(&reference.path)?,
         mhi_pose::Photo::open(&source.path)?,
@@ -1128,15 +1177,11 @@ fn estimated_source(
         ..mhi_pose::Options::default()
     };
     let pair = mhi_pose::estimate(&pa, &pb, &options)?;
-    let truth = sf
-        .camera
-        .cam_from_world
-        .compose(&rf.camera.cam_from_world.inverse());
     let t = pair.translation().normalize() * truth.translation().length();
-    let src_from_ref = mhi_geom::RigidTransform::new(pair.rotation(), t)?;
-    let mut cam = sf.camera;
-    cam.cam_from_world = src_from_ref.compose(&rf.camera.cam_from_world);
-    Ok(cam)
+    Ok((
+        mhi_geom::RigidTransform::new(pair.rotation(), t)?,
+        pair.median_parallax_deg,
+    ))
 }
 
 fn machine() -> String {

@@ -44,7 +44,8 @@ pub struct RenderArgs {
     /// Camera row (1-based) of the source photo.
     #[arg(long, default_value_t = 2)]
     pub src_row: usize,
-    /// A trained run (its latest checkpoint): stage 1 and the learned blend. Default: the
+    /// A trained run (its latest checkpoint): its stage 1 makes the MHI (its blending network
+    /// blends only with --blend learned). Default: the
     /// pretrained model in `models/` (see its MODEL.md), or the sweep when there is none.
     #[arg(long, conflicts_with = "sweep")]
     pub run: Option<PathBuf>,
@@ -52,6 +53,13 @@ pub struct RenderArgs {
     /// --far) instead of a trained model.
     #[arg(long)]
     pub sweep: bool,
+    /// How a trained model's multi-normal images are blended: `soft` (the paper's heuristic of
+    /// the angle between each normal and the pixel's ray; it also lets the render leave out
+    /// normals a view does not need) or `learned` (the model's blending network). Soft is the
+    /// default because the pretrained model's network does not beat it on validation data
+    /// (models/mhi-n5d16-colour/MODEL.md) and costs ~13 % more per view.
+    #[arg(long, value_enum, default_value_t = BlendArg::Soft)]
+    pub blend: BlendArg,
     /// Working size WIDTHxHEIGHT (photos are resized, intrinsics follow). A trained model needs
     /// each side a multiple of its U-Nets' multiple (8 for the pretrained model; the error names
     /// it). Default: the reference photo's aspect with its longer side 256, rounded to that
@@ -99,6 +107,15 @@ pub struct RenderArgs {
     pub explain: bool,
 }
 
+/// `render --blend`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum BlendArg {
+    /// The Soft heuristic.
+    Soft,
+    /// The trained model's blending network.
+    Learned,
+}
+
 /// `cargo xtask render`.
 pub fn render(a: &RenderArgs) -> anyhow::Result<()> {
     run(a, a.export.as_deref(), true)
@@ -125,6 +142,9 @@ fn check_args(a: &RenderArgs, file: &CameraFile, views_too: bool) -> anyhow::Res
         }
     }
     a.path.check()?;
+    if a.sweep && a.blend == BlendArg::Learned {
+        bail!("--blend learned needs a trained model: the sweep (--sweep) has no blending network");
+    }
     if !(a.fps.is_finite() && a.fps > 0.0 && a.fps <= 240.0) {
         bail!(
             "--fps {} must be a number of frames per second in (0, 240]",
@@ -376,6 +396,11 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
         println!("note: {n}");
     }
     let learned = load_model(a)?;
+    if learned.is_none() && a.blend == BlendArg::Learned {
+        bail!(
+            "--blend learned needs a trained model (--run, or the pretrained model in models/); the sweep has no blending network"
+        );
+    }
     let size = working_size(a, learned.as_ref())?;
     let (rf, sf, mhi) = build_mhi(a, &file, size, learned.as_ref())?;
     let model = learned.as_ref();
@@ -404,10 +429,12 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
     } else {
         Prune::with_budget(a.budget / 255.0)
     };
+    // The model blends only with --blend learned; its stage 1 made the MHI either way.
+    let blender = model.filter(|_| a.blend == BlendArg::Learned);
     let (plan, plan_json) = plan_views(
         a,
         &mhi,
-        model.is_some(),
+        blender.is_some(),
         &rf.camera,
         listed()
             .map(|r| r.map(|(_, c)| c))
@@ -422,7 +449,7 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
         let pb = crate::progress::bar(listed_count as u64, "views");
         for r in listed() {
             let (row, cam) = r?;
-            let (img, stats) = view(&mhi, model, &cam, prune)?;
+            let (img, stats) = view(&mhi, blender, &cam, prune)?;
             worst_bound = worst_bound.max(stats.bound);
             let path = out.path().join(format!("view_row{row:03}.png"));
             mhi_data::write_png(&path, &mhi_data::to_u8(&clipped(&img)))?;
@@ -430,7 +457,7 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
         }
         pb.finish_and_clear();
         if !path_cams.is_empty() {
-            let (v, bound) = path_video(a, &mhi, model, path_cams, prune, out.path())?;
+            let (v, bound) = path_video(a, &mhi, blender, path_cams, prune, out.path())?;
             worst_bound = worst_bound.max(bound);
             video = Some(v);
         }

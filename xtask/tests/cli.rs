@@ -1549,3 +1549,72 @@ fn eval_with_estimated_poses_records_each_triplets_pose_error() {
         serde_json::from_str(&std::fs::read_to_string(given.join("report.json")).unwrap()).unwrap();
     assert!(v["meta"].get("pose_errors").is_none(), "{}", v["meta"]);
 }
+
+/// `render --blend`: a trained run's views are blended with Soft by default and with its
+/// network on `--blend learned` (plan.json says which); the network cannot be asked of the
+/// sweep, and the refusal writes nothing.
+#[test]
+fn render_blends_with_soft_by_default_and_with_the_network_on_request() {
+    let d = tempfile::tempdir().unwrap();
+    let root = dataset(d.path());
+    let run = d.path().join("run");
+    let (r, data) = (run.to_str().unwrap(), root.to_str().unwrap());
+    let o = xtask(&train_args(r, data, "2"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let seq = root.join("test/scene_00001");
+    let cams = root.join("test/scene_00001.txt");
+    let mut frames: Vec<PathBuf> = std::fs::read_dir(&seq)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    frames.sort();
+    let (a, b) = (frames[0].to_str().unwrap(), frames[2].to_str().unwrap());
+    let render = |out: &Path, extra: &[&str]| {
+        let mut v = vec![
+            "render",
+            "--ref",
+            a,
+            "--src",
+            b,
+            "--src-row",
+            "3",
+            "--cameras",
+            cams.to_str().unwrap(),
+            "--size",
+            "16x16",
+            "--frames",
+            "2",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        v.extend_from_slice(extra);
+        v.iter().map(|s| s.to_string()).collect::<Vec<String>>()
+    };
+    let blend_of = |out: &Path| -> String {
+        let plan: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("plan.json")).unwrap()).unwrap();
+        plan["blend"].as_str().unwrap().to_string()
+    };
+    let soft = d.path().join("soft");
+    let v = render(&soft, &["--run", r]);
+    let o = xtask(&v.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(blend_of(&soft), "Soft");
+    let learned = d.path().join("learned");
+    let v = render(&learned, &["--run", r, "--blend", "learned"]);
+    let o = xtask(&v.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        blend_of(&learned).starts_with("learned"),
+        "{}",
+        blend_of(&learned)
+    );
+    let sweep = d.path().join("sweep");
+    let v = render(&sweep, &["--sweep", "--planes", "4", "--blend", "learned"]);
+    let err = fails(&v.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(
+        err.contains("--blend learned needs a trained model"),
+        "{err}"
+    );
+    assert!(!sweep.exists());
+}

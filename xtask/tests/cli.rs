@@ -1472,31 +1472,35 @@ fn eval_with_estimated_poses_records_each_triplets_pose_error() {
         ..SynthConfig::default()
     };
     generate(&config, d.path(), &|| {}).unwrap();
-    let out = d.path().join("report");
-    let o = xtask(&[
-        "eval",
-        "--data",
-        d.path().to_str().unwrap(),
-        "--methods",
-        "sweep",
-        "--sweep-grid",
-        "1x2",
-        "--size",
-        "64x48",
-        "--samples",
-        "0",
-        "--orbit-frames",
-        "0",
-        "--poses",
-        "estimated",
-        "--out",
-        out.to_str().unwrap(),
-        "--cache",
-        d.path().join("no-cache").to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let data = d.path().to_str().unwrap().to_string();
+    let cache = d.path().join("no-cache").to_str().unwrap().to_string();
+    // An eval of the sweep into `out` (`poses`: extra options); its report.json.
+    let eval = |out: &Path, poses: &[&str]| -> serde_json::Value {
+        let mut args = vec![
+            "eval",
+            "--data",
+            &data,
+            "--methods",
+            "sweep",
+            "--sweep-grid",
+            "1x2",
+            "--size",
+            "64x48",
+            "--samples",
+            "0",
+            "--orbit-frames",
+            "0",
+            "--out",
+            out.to_str().unwrap(),
+            "--cache",
+            &cache,
+        ];
+        args.extend_from_slice(poses);
+        let o = xtask(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap()
+    };
+    let v = eval(&d.path().join("report"), &["--poses", "estimated"]);
     let meta = &v["meta"];
     let errors = meta["pose_errors"].as_array().unwrap();
     assert_eq!(
@@ -1524,29 +1528,7 @@ fn eval_with_estimated_poses_records_each_triplets_pose_error() {
         "{meta}"
     );
     // With the dataset's cameras, no pose errors are recorded.
-    let given = d.path().join("given");
-    let o = xtask(&[
-        "eval",
-        "--data",
-        d.path().to_str().unwrap(),
-        "--methods",
-        "sweep",
-        "--sweep-grid",
-        "1x2",
-        "--size",
-        "64x48",
-        "--samples",
-        "0",
-        "--orbit-frames",
-        "0",
-        "--out",
-        given.to_str().unwrap(),
-        "--cache",
-        d.path().join("no-cache").to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(given.join("report.json")).unwrap()).unwrap();
+    let v = eval(&d.path().join("given"), &[]);
     assert!(v["meta"].get("pose_errors").is_none(), "{}", v["meta"]);
 }
 

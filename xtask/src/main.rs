@@ -13,7 +13,7 @@ mod stability;
 mod train;
 mod weights;
 
-use clap::Parser;
+use clap::{CommandFactory, FromArgMatches, Parser};
 use mhi_eval::{images as views, progress};
 use mhi_net::pretrained as models;
 
@@ -121,7 +121,22 @@ fn main() {
     }
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     keep_freed_memory();
-    let task = Task::parse();
+    let command = Task::command();
+    let matches = command.clone().get_matches();
+    let mut task = Task::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    if let (Task::Train(a), Some(("train", sub)), Some(cmd)) = (
+        &mut task,
+        matches.subcommand(),
+        command.find_subcommand("train"),
+    ) {
+        // The options given on the command line (not their groups, not defaults).
+        a.given = cmd
+            .get_arguments()
+            .map(|arg| arg.get_id().as_str())
+            .filter(|id| sub.value_source(id) == Some(clap::parser::ValueSource::CommandLine))
+            .map(str::to_string)
+            .collect();
+    }
     if let Err(e) = check_environment() {
         eprintln!("error: {e:#}");
         std::process::exit(1);

@@ -252,6 +252,10 @@ pub struct TrainArgs {
     /// Validation samples for the closing comparison (learned vs Soft vs untrained).
     #[arg(long, default_value_t = 12)]
     pub eval_samples: usize,
+    /// The options given on the command line (clap's ids), filled in by `main`: with
+    /// `--resume`, those that set the run's configuration are refused, not ignored.
+    #[arg(skip)]
+    pub given: Vec<String>,
 }
 
 pub use mhi_eval::run::EvalArgs;

@@ -216,6 +216,68 @@ fn report_run(
     Ok(())
 }
 
+/// The options `--resume` takes besides the run itself; every other one sets the run's
+/// configuration, which a resumed run keeps as its config.json says.
+const RESUME_OPTIONS: [&str; 7] = [
+    "run",
+    "resume",
+    "data",
+    "time_budget",
+    "backend",
+    "cache",
+    "eval_samples",
+];
+
+/// With `--resume`: refuse options that would change the run's configuration (they were
+/// ignored in silence), and `--data` roots other than the run's own.
+fn check_resume_options(a: &TrainArgs) -> anyhow::Result<()> {
+    let config = mhi_net::RunDir::new(&a.run).config_path();
+    let fixed: Vec<String> = a
+        .given
+        .iter()
+        .filter(|id| !RESUME_OPTIONS.contains(&id.as_str()))
+        .map(|id| format!("--{}", id.replace('_', "-")))
+        .collect();
+    if !fixed.is_empty() {
+        bail!(
+            "{} {} the run's configuration, which --resume keeps as {} says: drop {} to continue the run (edit config.json to change a resumed run), or train with {} in a new --run",
+            fixed.join(", "),
+            if fixed.len() == 1 { "sets" } else { "set" },
+            config.display(),
+            if fixed.len() == 1 { "it" } else { "them" },
+            if fixed.len() == 1 { "it" } else { "them" },
+        );
+    }
+    if a.given.iter().any(|id| id == "data")
+        && let Ok(c) = mhi_net::RunDir::new(&a.run).config()
+        && !c.data.is_empty()
+    {
+        let same = |p: &std::path::Path, q: &std::path::Path| {
+            p == q || matches!((p.canonicalize(), q.canonicalize()), (Ok(x), Ok(y)) if x == y)
+        };
+        let recorded: Vec<&std::path::Path> = c.data.iter().map(|d| d.root.as_path()).collect();
+        let matching =
+            recorded.len() == a.data.len() && recorded.iter().zip(&a.data).all(|(r, d)| same(r, d));
+        if !matching {
+            bail!(
+                "--data {}: the run trains on {} ({}); --resume keeps them: pass the same roots, or none",
+                a.data
+                    .iter()
+                    .map(|d| d.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(" --data "),
+                recorded
+                    .iter()
+                    .map(|d| d.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                config.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// `cargo xtask train`.
 pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
     if a.data.len() == 1 && a.data[0] == std::path::Path::new("data/synth") {
@@ -224,6 +286,9 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
     let sources = sources(a)?;
     let device = device(a.backend)?.autodiff();
     let weights = crate::common::cache_dir(a.cache.as_deref()).join("weights");
+    if a.resume {
+        check_resume_options(a)?;
+    }
     let mut trainer = if a.resume {
         Trainer::resume(&a.run, &a.data[0], Some(&weights), device)
             .with_context(|| {

@@ -396,6 +396,36 @@ fn checkpoint_from_another_configuration_and_existing_run() {
         "{err}"
     );
     assert_eq!(std::fs::read(run.join("log.csv")).unwrap(), log);
+    // --resume keeps the run's configuration: an option that would change it, or other data
+    // roots, is refused naming it (it used to be ignored), and nothing is trained.
+    let err = fails(&[
+        "train",
+        "--run",
+        r,
+        "--data",
+        data,
+        "--resume",
+        "--lr",
+        "0.5",
+        "--lr-drop-at",
+        "1",
+    ]);
+    assert!(
+        err.contains("--lr, --lr-drop-at set the run's configuration")
+            && err.contains("config.json"),
+        "{err}"
+    );
+    let other = d.path().join("other");
+    let err = fails(&[
+        "train",
+        "--run",
+        r,
+        "--data",
+        other.to_str().unwrap(),
+        "--resume",
+    ]);
+    assert!(err.contains("--resume keeps them"), "{err}");
+    assert_eq!(std::fs::read(run.join("log.csv")).unwrap(), log);
     // The existing run is named before the loss is set up: a perceptual loss whose VGG16
     // weights are missing is not what the user hears about.
     let empty = d.path().join("empty-cache");

@@ -239,13 +239,15 @@ fn check_resume_options(a: &TrainArgs) -> anyhow::Result<()> {
         .map(|id| format!("--{}", id.replace('_', "-")))
         .collect();
     if !fixed.is_empty() {
+        let (verb, them) = if fixed.len() == 1 {
+            ("sets", "it")
+        } else {
+            ("set", "them")
+        };
         bail!(
-            "{} {} the run's configuration, which --resume keeps as {} says: drop {} to continue the run (edit config.json to change a resumed run), or train with {} in a new --run",
+            "{} {verb} the run's configuration, which --resume keeps as {} says: drop {them} to continue the run (edit config.json to change a resumed run), or train with {them} in a new --run",
             fixed.join(", "),
-            if fixed.len() == 1 { "sets" } else { "set" },
             config.display(),
-            if fixed.len() == 1 { "it" } else { "them" },
-            if fixed.len() == 1 { "it" } else { "them" },
         );
     }
     if a.given.iter().any(|id| id == "data")
@@ -286,10 +288,8 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
     let sources = sources(a)?;
     let device = device(a.backend)?.autodiff();
     let weights = crate::common::cache_dir(a.cache.as_deref()).join("weights");
-    if a.resume {
-        check_resume_options(a)?;
-    }
     let mut trainer = if a.resume {
+        check_resume_options(a)?;
         Trainer::resume(&a.run, &a.data[0], Some(&weights), device)
             .with_context(|| {
                 format!(

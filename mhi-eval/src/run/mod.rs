@@ -1157,11 +1157,10 @@ fn print_summary(rows: &[Row], comparisons: &[Comparison]) {
     }
 }
 
-/// The source camera with the pose `mhi-pose` estimates from the two frames' pixels (their
-/// known intrinsics), its translation scaled to the true baseline's length; the reference
-/// keeps its true pose, so the target's true pose relative to it stands.
-/// The source-from-reference pose estimated from the two frames, its translation scaled to the
-/// length of `truth`'s, and the estimate's median parallax (degrees).
+/// The source-from-reference pose `mhi-pose` estimates from the two frames' pixels (their
+/// known intrinsics), its translation scaled to the length of `truth`'s, and the estimate's
+/// median parallax (degrees). The caller keeps the reference's true pose, so the target's true
+/// pose relative to it stands.
 fn estimated_source(
     reference: &mhi_data::Frame,
     source: &mhi_data::Frame,

@@ -911,7 +911,14 @@ pub mod blocked {
             // 32 vector registers: 24 accumulators (12 positions × 32 channels, or 24 × 16)
             // and the weights; the broadcast input rides in the multiply-add's memory operand.
             let nv = if s.cout.is_multiple_of(32) { 2 } else { 1 };
-            let p_len = if nv == 2 { 12 } else { 24 };
+            // The tile's length: the full register file's, or two thirds of it where whole
+            // rows of the output take fewer positions that way (16 × 16 outputs: 16 positions
+            // a row instead of the 18 or 24 of the padded rows).
+            let tiling = if nv == 2 {
+                Tiling::choose(s, &p, &[12, 8])
+            } else {
+                Tiling::choose(s, &p, &[24, 16])
+            };
             // SAFETY: a plain transmute of 16 floats into a vector (same size, any bits).
             let wv = pack::<__m512, 16>(s, w, nv, |c| unsafe {
                 std::mem::transmute::<[f32; 16], __m512>(c)
@@ -920,18 +927,20 @@ pub mod blocked {
             run(
                 s,
                 &p,
-                p_len,
+                tiling,
                 16 * nv,
                 bias,
                 dst,
                 |wide, at, q, taps, g, ob| {
                     let wb = &wv[ob * per_block..(ob + 1) * per_block];
+                    let out = (wide, at, q);
                     // SAFETY: AVX-512F was detected (`avx512_applies`).
                     unsafe {
-                        if nv == 2 {
-                            tile512::<2, 12>(&p, taps, g, s.cin, wb, (wide, at, q));
-                        } else {
-                            tile512::<1, 24>(&p, taps, g, s.cin, wb, (wide, at, q));
+                        match (nv, tiling.len) {
+                            (2, 12) => tile512::<2, 12>(&p, taps, g, s.cin, wb, out),
+                            (2, _) => tile512::<2, 8>(&p, taps, g, s.cin, wb, out),
+                            (_, 24) => tile512::<1, 24>(&p, taps, g, s.cin, wb, out),
+                            _ => tile512::<1, 16>(&p, taps, g, s.cin, wb, out),
                         }
                     }
                 },
@@ -947,7 +956,7 @@ pub mod blocked {
             run(
                 s,
                 &p,
-                p_len,
+                Tiling::choose(s, &p, &[p_len]),
                 8 * nv,
                 bias,
                 dst,
@@ -999,19 +1008,54 @@ pub mod blocked {
         wv
     }
 
-    /// Every job of `p`: its tiles of `p_len` wide positions, block of `lanes` output channels
-    /// by block (`tile(wide, at, q, taps, g, block)`), into the job's buffer, then the job's
-    /// rows into the output with the bias.
+    /// How a job's wide positions are cut into tiles.
+    #[derive(Debug, Clone, Copy)]
+    struct Tiling {
+        /// Positions a tile.
+        len: usize,
+        /// Tiles start at every output row (and leave the row's dropped columns out) instead
+        /// of running through the segment's wide positions, dropped ones included.
+        rows: bool,
+    }
+
+    impl Tiling {
+        /// Of the tile lengths `lens` (the first preferred on a tie) and the two layouts, the
+        /// one that computes the fewest positions a row of the output: `wq` through the padded
+        /// row, `⌈W' / len⌉ · len` by rows.
+        fn choose(s: &ConvShape, p: &Padded, lens: &[usize]) -> Self {
+            let ow = s.output()[2];
+            let mut best = (
+                p.wq,
+                Tiling {
+                    len: lens[0],
+                    rows: false,
+                },
+            );
+            for &len in lens {
+                let cost = ow.div_ceil(len) * len;
+                if cost < best.0 {
+                    best = (cost, Tiling { len, rows: true });
+                }
+            }
+            best.1
+        }
+    }
+
+    /// Every job of `p`: its tiles of `tiling.len` wide positions, block of `lanes` output
+    /// channels by block (`tile(wide, at, q, taps, g, block)`), into the job's buffer, then the
+    /// job's rows into the output with the bias.
     fn run(
         s: &ConvShape,
         p: &Padded,
-        p_len: usize,
+        tiling: Tiling,
         lanes: usize,
         bias: Option<&[f32]>,
         dst: SharedMut,
         tile: impl Fn(&mut [f32], usize, usize, &[(usize, usize)], usize, usize) + Sync,
     ) {
+        let p_len = tiling.len;
         let q = p.q + p_len;
+        let (wq, ow) = (p.wq, s.output()[2]);
         p.jobs
             .par_iter()
             .for_each_init(Vec::new, |wide: &mut Vec<f32>, &job| {
@@ -1024,15 +1068,20 @@ pub mod blocked {
                 }
                 for (col, len, taps) in p.segments(s, job) {
                     for ob in 0..s.cout / lanes {
-                        for g in (0..len).step_by(p_len) {
-                            // The tile's outputs go straight into `wide`, channel by
-                            // channel (written value by value through a buffer, with a
-                            // bounds check each, they took 8 % of stage 1's inference). The
-                            // last tile of a segment spills up to p_len − 1 columns into the
-                            // next segment's, which its own tiles overwrite later (and into
-                            // the buffer's p_len spare columns after the last segment).
-                            let at = ob * lanes * q + col + g;
-                            tile(wide, at, q, &taps, g, ob);
+                        // The tile's outputs go straight into `wide`, channel by channel
+                        // (written value by value through a buffer, with a bounds check each,
+                        // they took 8 % of stage 1's inference). A tile that runs past its
+                        // row or segment spills up to p_len − 1 columns into the next row's or
+                        // segment's, which their own tiles overwrite later (and into the
+                        // buffer's p_len spare columns after the last segment).
+                        let mut each =
+                            |g: usize| tile(wide, ob * lanes * q + col + g, q, &taps, g, ob);
+                        if tiling.rows {
+                            for r in (0..len).step_by(wq) {
+                                (0..ow).step_by(p_len).for_each(|c| each(r + c));
+                            }
+                        } else {
+                            (0..len).step_by(p_len).for_each(&mut each);
                         }
                     }
                 }

@@ -938,7 +938,7 @@ mod tests {
     #[test]
     fn the_direct_kernel_matches_an_f64_reference() {
         let dev = Device::flex();
-        let wide: [Case; 8] = [
+        let wide: [Case; 10] = [
             (2, 16, 8, [3, 9, 11], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
             // Strides in the image axes: odd and even sizes, a stride of 3, dilation with stride.
             (2, 8, 16, [3, 17, 16], [3, 3, 3], [1, 2, 2], [1; 3], [1; 3]),
@@ -977,6 +977,19 @@ mod tests {
                 [1, 4, 4],
             ),
             (2, 16, 3, [1, 1, 7], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            // Tiles by output rows: 32 channels at 16 wide with dilation 4 (tiles of 8 rather
+            // than 12 across a padded row of 24), 16 channels at 32 wide (tiles of 16).
+            (
+                1,
+                9,
+                32,
+                [2, 16, 16],
+                [3, 3, 3],
+                [1; 3],
+                [1, 4, 4],
+                [1, 4, 4],
+            ),
+            (2, 5, 16, [2, 5, 32], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
         ];
         for (batch, cin, cout, input, kernel, stride, dilation, padding) in
             CASES.into_iter().chain(wide)

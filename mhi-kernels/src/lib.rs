@@ -35,6 +35,7 @@
 pub mod kernel;
 pub mod norm;
 pub mod pool;
+pub mod ssim;
 
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
@@ -140,6 +141,38 @@ pub trait FastOps: Backend {
         k: usize,
         s: usize,
     ) -> FloatTensor<Self>;
+
+    /// The SSIM loss of two `[B, C, H, W]` images ([`ssim`]), a one-element tensor.
+    fn fast_ssim_loss(a: FloatTensor<Self>, b: FloatTensor<Self>) -> FloatTensor<Self>;
+
+    /// The gradients `(a, b)` of [`FastOps::fast_ssim_loss`] times its upstream gradient
+    /// `grad` (one element).
+    fn fast_ssim_loss_backward(
+        a: FloatTensor<Self>,
+        b: FloatTensor<Self>,
+        grad: FloatTensor<Self>,
+    ) -> (FloatTensor<Self>, FloatTensor<Self>);
+}
+
+/// The SSIM loss `mean(clamp(1 − SSIM, 0, 2)) / 2` of `a` against `b` (`[B, C, H, W]`, 3 × 3
+/// box windows over the valid region, C1 = 0.01², C2 = 0.03²) and its gradients with respect to
+/// both, by [`ssim`]'s kernel on the CPU backend; `None` on any other device (burn's own ops
+/// compute it there).
+pub fn ssim_loss(a: Tensor<4>, b: Tensor<4>) -> Option<Tensor<1>> {
+    if !on_flex(&a) {
+        return None;
+    }
+    let out =
+        <burn::backend::Dispatch as FastOps>::fast_ssim_loss(a.into_dispatch(), b.into_dispatch());
+    Some(Tensor::<1>::from_dispatch(out))
+}
+
+fn ssim_shape(shape: &[usize]) -> ssim::SsimShape {
+    ssim::SsimShape {
+        planes: shape[0] * shape[1],
+        h: shape[2],
+        w: shape[3],
+    }
 }
 
 /// `max_pool2d` over `k × k` windows at stride `s` (no padding, no dilation, rounded down):
@@ -508,6 +541,24 @@ impl FastOps for Flex {
             shape.to_vec(),
         )
     }
+
+    fn fast_ssim_loss(a: FlexTensor, b: FlexTensor) -> FlexTensor {
+        let s = ssim_shape(&a.shape().to_vec());
+        let (a, b) = (f32s(a), f32s(b));
+        flex(vec![ssim::forward(&s, a.storage(), b.storage())], vec![1])
+    }
+
+    fn fast_ssim_loss_backward(
+        a: FlexTensor,
+        b: FlexTensor,
+        grad: FlexTensor,
+    ) -> (FlexTensor, FlexTensor) {
+        let shape = a.shape().to_vec();
+        let s = ssim_shape(&shape);
+        let (a, b, g) = (f32s(a), f32s(b), f32s(grad));
+        let (ga, gb) = ssim::backward(&s, a.storage(), b.storage(), g.storage::<f32>()[0]);
+        (flex(ga, shape.clone()), flex(gb, shape))
+    }
 }
 
 /// `[B, C, …]` as batch, channels and positions.
@@ -666,6 +717,66 @@ impl<B: Backend + FastOps, C: CheckpointStrategy> FastOps for Autodiff<B, C> {
             k,
             s,
         ))
+    }
+
+    fn fast_ssim_loss(a: FloatTensor<Self>, b: FloatTensor<Self>) -> FloatTensor<Self> {
+        match SsimLoss
+            .prepare::<C>([a.node(), b.node()])
+            .compute_bound()
+            .stateful()
+        {
+            OpsKind::Tracked(mut prep) => {
+                let a_state = prep.checkpoint(&a);
+                let b_state = prep.checkpoint(&b);
+                let y = B::fast_ssim_loss(a.into_primitive(), b.into_primitive());
+                prep.finish((a_state, b_state), y)
+            }
+            OpsKind::UnTracked(prep) => {
+                prep.finish(B::fast_ssim_loss(a.into_primitive(), b.into_primitive()))
+            }
+        }
+    }
+
+    fn fast_ssim_loss_backward(
+        a: FloatTensor<Self>,
+        b: FloatTensor<Self>,
+        grad: FloatTensor<Self>,
+    ) -> (FloatTensor<Self>, FloatTensor<Self>) {
+        // Computed by the inner backend and not tracked (as the layer norm's gradients).
+        let (ga, gb) = B::fast_ssim_loss_backward(
+            a.into_primitive(),
+            b.into_primitive(),
+            grad.into_primitive(),
+        );
+        let lift = <FloatTensor<Self>>::new;
+        (lift(ga), lift(gb))
+    }
+}
+
+/// The autodiff node of [`FastOps::fast_ssim_loss`].
+#[derive(Debug)]
+struct SsimLoss;
+
+impl<B: Backend + FastOps> Backward<B, 2> for SsimLoss {
+    type State = (NodeId, NodeId);
+
+    fn backward(
+        self,
+        ops: Ops<Self::State, 2>,
+        grads: &mut Gradients,
+        checkpointer: &mut Checkpointer,
+    ) {
+        let [node_a, node_b] = ops.parents;
+        let grad = grads.consume::<B>(&ops.node);
+        let (a_state, b_state) = ops.state;
+        let a = checkpointer.retrieve_node_output::<B::FloatTensorPrimitive>(a_state);
+        let b = checkpointer.retrieve_node_output::<B::FloatTensorPrimitive>(b_state);
+        let (ga, gb) = B::fast_ssim_loss_backward(a, b, grad);
+        for (node, g) in [(node_a, ga), (node_b, gb)] {
+            if let Some(node) = node {
+                grads.register::<B>(node.id, g);
+            }
+        }
     }
 }
 

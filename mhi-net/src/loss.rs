@@ -32,11 +32,25 @@ fn pool(x: Tensor<4>) -> Tensor<4> {
 }
 
 /// `(1 − SSIM) / 2` averaged over pixels, with 3 × 3 box windows (valid region only), C1 =
-/// 0.01², C2 = 0.03². In `[0, 1]`; its gradient is finite for constant images (C1, C2 > 0).
+/// 0.01², C2 = 0.03². In `[0, 1]`; its gradient is finite for constant images (C1, C2 > 0). On
+/// the CPU backend one fused kernel computes it and its gradients
+/// ([`mhi_kernels::ssim`]); elsewhere burn's ops ([`ssim_loss_ops`]).
 ///
 /// # Shapes
 /// `[B, C, H, W]` (H, W ≥ 3) → `[1]`
 pub fn ssim_loss(a: Tensor<4>, b: Tensor<4>) -> Tensor<1> {
+    if let Some(loss) = mhi_kernels::ssim_loss(a.clone(), b.clone()) {
+        return loss;
+    }
+    ssim_loss_ops(a, b)
+}
+
+/// [`ssim_loss`] as burn's tensor operations (average pooling and element-wise arithmetic), on
+/// any device.
+///
+/// # Shapes
+/// `[B, C, H, W]` (H, W ≥ 3) → `[1]`
+pub fn ssim_loss_ops(a: Tensor<4>, b: Tensor<4>) -> Tensor<1> {
     let (c1, c2) = (0.01_f32 * 0.01, 0.03_f32 * 0.03);
     let mu_a = pool(a.clone());
     let mu_b = pool(b.clone());
@@ -235,6 +249,74 @@ mod tests {
                 .try_to_vec()
                 .unwrap();
             assert!(g.iter().all(|x| x.is_finite()), "{va} vs {vb}");
+        }
+    }
+
+    /// The fused SSIM kernel of the CPU backend gives burn's ops' loss and gradients with
+    /// respect to both images: random images, flat ones, saturated ones, uneven sizes.
+    #[test]
+    fn the_fused_ssim_matches_burns_ops() {
+        let device = Device::flex().autodiff();
+        // (shape, flat values of a and b or random ones)
+        type Case = ([usize; 4], Option<(f32, f32)>);
+        let cases: [Case; 4] = [
+            ([2, 3, 9, 11], None),
+            ([1, 1, 3, 3], None),
+            ([1, 3, 6, 5], Some((0.5, 0.5))),
+            ([1, 2, 5, 7], Some((1.0, 0.0))),
+        ];
+        for (shape, flat) in cases {
+            let make = |seed: f32, v: Option<f32>| -> Tensor<4> {
+                let n: usize = shape.iter().product();
+                let values: Vec<f32> = (0..n)
+                    .map(|i| v.unwrap_or(((i as f32 * 0.618 + seed).sin() * 0.5 + 0.5).fract()))
+                    .collect();
+                Tensor::<4>::from_data(burn::tensor::TensorData::new(values, shape), &device)
+                    .require_grad()
+            };
+            let run = |fused: bool| {
+                let (a, b) = (make(0.3, flat.map(|f| f.0)), make(1.7, flat.map(|f| f.1)));
+                let loss = if fused {
+                    ssim_loss(a.clone(), b.clone())
+                } else {
+                    ssim_loss_ops(a.clone(), b.clone())
+                } * 3.0;
+                let value: f32 = loss.clone().into_scalar();
+                let grads = loss.backward();
+                let g = |t: &Tensor<4>| -> Vec<f32> {
+                    t.grad(&grads)
+                        .expect("gradient")
+                        .into_data()
+                        .try_to_vec::<f32>()
+                        .unwrap()
+                };
+                (value, g(&a), g(&b))
+            };
+            let (fused, ops) = (run(true), run(false));
+            assert!(
+                (fused.0 - ops.0).abs() < 1e-6,
+                "{shape:?}: {} vs {}",
+                fused.0,
+                ops.0
+            );
+            for (x, y) in [(&fused.1, &ops.1), (&fused.2, &ops.2)] {
+                // Flat images: the exact gradient is 0 or nearly, and burn's ops leave rounding
+                // noise of a few 1e-6 (σ = S − μ² cancels); elsewhere, relative to the largest.
+                let scale = y.iter().fold(0.0_f32, |m, v| m.max(v.abs()));
+                let tol = if flat.is_some() { 1e-5 } else { 1e-4 * scale };
+                let worst = x
+                    .iter()
+                    .zip(y)
+                    .fold(0.0_f32, |m, (x, y)| m.max((x - y).abs()));
+                assert!(
+                    worst <= tol,
+                    "{shape:?}: gradient off by {worst} (scale {scale})"
+                );
+                assert!(
+                    flat.is_some() || scale > 1e-4,
+                    "{shape:?}: a gradient to compare"
+                );
+            }
         }
     }
 

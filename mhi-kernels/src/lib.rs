@@ -1,4 +1,5 @@
-//! The CPU backend's own convolution and layer-norm kernels, each with its own backward.
+//! The CPU backend's own convolution, layer-norm, max-pooling and SSIM-loss kernels, each with
+//! its own backward.
 //!
 //! burn-flex's `conv3d` builds a channels-last copy of the input and im2col tiles one output
 //! position per row, and its gradients go through a transposed convolution; on stage 1's shapes

@@ -266,3 +266,66 @@ fn the_gather_warp_matches_grid_sample_and_its_gradient() {
     let err = max_diff(values(&a), values(&b));
     assert!(err < 1e-4, "gradient differs by {err}");
 }
+
+/// The fused over-compositing of the CPU backend gives burn's loop of tensor operations and its
+/// gradients with respect to the colours and the alphas, with alphas of exactly 0 and 1 among
+/// them (the farthest layer opaque whatever its alpha).
+#[test]
+fn the_fused_composite_matches_burns_loop_and_its_gradients() {
+    let c = case(3, 5, 23, 17, 7, None);
+    let tgt = target(&c, DMat3::from_rotation_y(0.1), DVec3::new(0.2, 0.0, 0.1));
+    let device = Device::flex().autodiff();
+    let geom = WarpGeometry::new(
+        c.mhi.normals(),
+        c.mhi.depths(),
+        c.mhi.reference(),
+        &tgt,
+        &device,
+    )
+    .unwrap();
+    let (l, h, w) = (3 * 5, geom.height, geom.width);
+    let rgb = Tensor::<4>::random(
+        [l, 3, h, w],
+        burn::tensor::Distribution::Uniform(0.0, 1.0),
+        &device,
+    )
+    .require_grad();
+    // Alphas in [-0.2, 1.2] clamped: a share of exact zeros and ones.
+    let alpha = Tensor::<4>::random(
+        [l, 1, h, w],
+        burn::tensor::Distribution::Uniform(-0.2, 1.2),
+        &device,
+    )
+    .clamp(0.0, 1.0)
+    .detach()
+    .require_grad();
+    let ours = mhi_render::diff::composite(rgb.clone(), alpha.clone(), &geom);
+    let theirs = mhi_render::diff::composite_ops(rgb.clone(), alpha.clone(), &geom);
+    let values = |t: &Tensor<4>| t.to_data().convert::<f32>().try_into_vec::<f32>().unwrap();
+    let max_diff = |a: Vec<f32>, b: Vec<f32>| {
+        a.iter()
+            .zip(&b)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max)
+    };
+    assert_eq!(ours.dims(), [3, 3, h, w]);
+    let err = max_diff(values(&ours), values(&theirs));
+    assert!(err < 1e-5, "forward differs by {err}");
+    let weights = Tensor::<4>::random(
+        ours.dims(),
+        burn::tensor::Distribution::Uniform(-1.0, 1.0),
+        &device,
+    );
+    let g1 = (ours * weights.clone()).sum().backward();
+    let g2 = (theirs * weights).sum().backward();
+    for (name, x) in [("colour", &rgb), ("alpha", &alpha)] {
+        let (a, b) = (x.grad(&g1).unwrap(), x.grad(&g2).unwrap());
+        let (a, b) = (values(&a), values(&b));
+        assert!(
+            b.iter().any(|v| v.abs() > 1e-3),
+            "{name}: a gradient to compare"
+        );
+        let err = max_diff(a, b);
+        assert!(err < 1e-5, "{name} gradient differs by {err}");
+    }
+}

@@ -11,6 +11,7 @@ use crate::cpu::{W_EPS, row_major_f32};
 use crate::error::{Error, Result};
 
 pub mod gather;
+pub mod over;
 
 pub use gather::Taps;
 
@@ -153,6 +154,18 @@ pub fn warp(layers: Tensor<4>, geom: &WarpGeometry) -> Tensor<4> {
 /// - `rgb`: `[N·D, 3, H, W]`, `alpha`: `[N·D, 1, H, W]` (warped, far first within each normal)
 /// - returns the multi-normal images `[N, 3, H, W]`
 pub fn composite(rgb: Tensor<4>, alpha: Tensor<4>, geom: &WarpGeometry) -> Tensor<4> {
+    if gather::on_cpu_backend(&rgb.device()) {
+        return over::over(rgb, alpha, geom.n);
+    }
+    composite_ops(rgb, alpha, geom)
+}
+
+/// [`composite`] as burn's tensor operations, a loop over the layers (on any device; on the CPU
+/// backend [`composite`] runs one fused kernel, [`over`]).
+///
+/// # Shapes
+/// As [`composite`].
+pub fn composite_ops(rgb: Tensor<4>, alpha: Tensor<4>, geom: &WarpGeometry) -> Tensor<4> {
     let (n, d, h, w) = (geom.n, geom.d, geom.height, geom.width);
     let far = geom.far.clone();
     let alpha = alpha * (far.ones_like() - far.clone()) + far;

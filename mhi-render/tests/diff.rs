@@ -213,6 +213,31 @@ fn gradients_are_finite_on_extreme_cases() {
     }
 }
 
+/// A tensor's values.
+fn values(t: &Tensor<4>) -> Vec<f32> {
+    t.to_data().convert::<f32>().try_into_vec::<f32>().unwrap()
+}
+
+/// The largest absolute difference of two equally long value lists.
+fn max_diff(a: Vec<f32>, b: Vec<f32>) -> f32 {
+    a.iter()
+        .zip(&b)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max)
+}
+
+/// The warp geometry of case `c` seen from `tgt`, on the autodiff CPU device.
+fn geometry(c: &Case, tgt: &Camera, device: &Device) -> WarpGeometry {
+    WarpGeometry::new(
+        c.mhi.normals(),
+        c.mhi.depths(),
+        c.mhi.reference(),
+        tgt,
+        device,
+    )
+    .unwrap()
+}
+
 /// The gather warp (precomputed taps, hand-written backward) gives `grid_sample` × validity and
 /// its gradient, on a view that leaves part of every layer outside the reference image.
 #[test]
@@ -225,14 +250,7 @@ fn the_gather_warp_matches_grid_sample_and_its_gradient() {
         DVec3::new(0.3, -0.1, 0.2),
     );
     let device = Device::flex().autodiff();
-    let geom = WarpGeometry::new(
-        c.mhi.normals(),
-        c.mhi.depths(),
-        c.mhi.reference(),
-        &tgt,
-        &device,
-    )
-    .unwrap();
+    let geom = geometry(&c, &tgt, &device);
     assert!(geom.taps.is_some(), "the CPU backend builds taps");
     let layers = Tensor::cat(vec![alpha_tensor(&c, &device); 2], 1).require_grad();
     let ours = mhi_render::diff::warp(layers.clone(), &geom);
@@ -240,13 +258,6 @@ fn the_gather_warp_matches_grid_sample_and_its_gradient() {
         .clone()
         .grid_sample_2d(geom.grid.clone(), GridSampleOptions::default())
         * geom.valid.clone();
-    let values = |t: &Tensor<4>| t.to_data().convert::<f32>().try_into_vec::<f32>().unwrap();
-    let max_diff = |a: Vec<f32>, b: Vec<f32>| {
-        a.iter()
-            .zip(&b)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0f32, f32::max)
-    };
     assert_eq!(ours.dims(), theirs.dims());
     let (o, t) = (values(&ours), values(&theirs));
     assert!(
@@ -275,14 +286,7 @@ fn the_fused_composite_matches_burns_loop_and_its_gradients() {
     let c = case(3, 5, 23, 17, 7, None);
     let tgt = target(&c, DMat3::from_rotation_y(0.1), DVec3::new(0.2, 0.0, 0.1));
     let device = Device::flex().autodiff();
-    let geom = WarpGeometry::new(
-        c.mhi.normals(),
-        c.mhi.depths(),
-        c.mhi.reference(),
-        &tgt,
-        &device,
-    )
-    .unwrap();
+    let geom = geometry(&c, &tgt, &device);
     let (l, h, w) = (3 * 5, geom.height, geom.width);
     let rgb = Tensor::<4>::random(
         [l, 3, h, w],
@@ -301,13 +305,6 @@ fn the_fused_composite_matches_burns_loop_and_its_gradients() {
     .require_grad();
     let ours = mhi_render::diff::composite(rgb.clone(), alpha.clone(), &geom);
     let theirs = mhi_render::diff::composite_ops(rgb.clone(), alpha.clone(), &geom);
-    let values = |t: &Tensor<4>| t.to_data().convert::<f32>().try_into_vec::<f32>().unwrap();
-    let max_diff = |a: Vec<f32>, b: Vec<f32>| {
-        a.iter()
-            .zip(&b)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0f32, f32::max)
-    };
     assert_eq!(ours.dims(), [3, 3, h, w]);
     let err = max_diff(values(&ours), values(&theirs));
     assert!(err < 1e-5, "forward differs by {err}");

@@ -238,6 +238,23 @@ fn geometry(c: &Case, tgt: &Camera, device: &Device) -> WarpGeometry {
     .unwrap()
 }
 
+/// The gradients of one random weighting of two outputs, each through its own graph.
+fn backward_both(
+    ours: Tensor<4>,
+    theirs: Tensor<4>,
+    device: &Device,
+) -> (burn::tensor::Gradients, burn::tensor::Gradients) {
+    let weights = Tensor::<4>::random(
+        ours.dims(),
+        burn::tensor::Distribution::Uniform(-1.0, 1.0),
+        device,
+    );
+    (
+        (ours * weights.clone()).sum().backward(),
+        (theirs * weights).sum().backward(),
+    )
+}
+
 /// The gather warp (precomputed taps, hand-written backward) gives `grid_sample` × validity and
 /// its gradient, on a view that leaves part of every layer outside the reference image.
 #[test]
@@ -266,13 +283,7 @@ fn the_gather_warp_matches_grid_sample_and_its_gradient() {
     );
     let err = max_diff(o, t);
     assert!(err < 1e-5, "forward differs by {err}");
-    let weights = Tensor::<4>::random(
-        ours.dims(),
-        burn::tensor::Distribution::Uniform(-1.0, 1.0),
-        &device,
-    );
-    let g1 = (ours * weights.clone()).sum().backward();
-    let g2 = (theirs * weights).sum().backward();
+    let (g1, g2) = backward_both(ours, theirs, &device);
     let (a, b) = (layers.grad(&g1).unwrap(), layers.grad(&g2).unwrap());
     let err = max_diff(values(&a), values(&b));
     assert!(err < 1e-4, "gradient differs by {err}");
@@ -308,13 +319,7 @@ fn the_fused_composite_matches_burns_loop_and_its_gradients() {
     assert_eq!(ours.dims(), [3, 3, h, w]);
     let err = max_diff(values(&ours), values(&theirs));
     assert!(err < 1e-5, "forward differs by {err}");
-    let weights = Tensor::<4>::random(
-        ours.dims(),
-        burn::tensor::Distribution::Uniform(-1.0, 1.0),
-        &device,
-    );
-    let g1 = (ours * weights.clone()).sum().backward();
-    let g2 = (theirs * weights).sum().backward();
+    let (g1, g2) = backward_both(ours, theirs, &device);
     for (name, x) in [("colour", &rgb), ("alpha", &alpha)] {
         let (a, b) = (x.grad(&g1).unwrap(), x.grad(&g2).unwrap());
         let (a, b) = (values(&a), values(&b));

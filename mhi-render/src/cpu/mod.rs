@@ -53,8 +53,8 @@ mod weights;
 
 pub use kernel::render;
 pub use options::{Blend, Prune, RenderOptions, RenderStats, Rendered, W_EPS};
-pub use plan::{TILE_H, TILE_W, needed_share, needed_share_per_normal};
-pub(crate) use plan::{layers_to_skip, normals_to_drop};
 #[cfg(feature = "diff")]
 pub(crate) use plan::row_major_f32;
+pub use plan::{TILE_H, TILE_W, needed_share, needed_share_per_normal};
+pub(crate) use plan::{layers_to_skip, normals_to_drop};
 pub use weights::{combine, heuristic_weights, heuristic_weights_for};

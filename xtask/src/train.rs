@@ -231,7 +231,8 @@ const RESUME_OPTIONS: [&str; 7] = [
 /// With `--resume`: refuse options that would change the run's configuration (they were
 /// ignored in silence), and `--data` roots other than the run's own.
 fn check_resume_options(a: &TrainArgs) -> anyhow::Result<()> {
-    let config = mhi_net::RunDir::new(&a.run).config_path();
+    let dir = mhi_net::RunDir::new(&a.run);
+    let config = dir.config_path();
     let fixed: Vec<String> = a
         .given
         .iter()
@@ -251,7 +252,7 @@ fn check_resume_options(a: &TrainArgs) -> anyhow::Result<()> {
         );
     }
     if a.given.iter().any(|id| id == "data")
-        && let Ok(c) = mhi_net::RunDir::new(&a.run).config()
+        && let Ok(c) = dir.config()
         && !c.data.is_empty()
     {
         let same = |p: &std::path::Path, q: &std::path::Path| {

@@ -40,6 +40,9 @@ struct Shape {
 fn forward(s: Shape, rgb: &[f32], alpha: &[f32]) -> Vec<f32> {
     let (d, px) = (s.d, s.pixels);
     let mut out = vec![0.0f32; s.n * 3 * px];
+    if px == 0 {
+        return out;
+    }
     out.par_chunks_mut(3 * px).enumerate().for_each(|(i, out)| {
         let (o_r, rest) = out.split_at_mut(px);
         let (o_g, o_b) = rest.split_at_mut(px);

@@ -26,7 +26,9 @@
 //! blocks of 8 — with AVX-512F and channels in blocks of 16 its tiles are 16 channels a vector
 //! (`tile512`, 24 accumulators; the same bits as the AVX2 tiles, tested) — else one `gemm` per
 //! offset (gemm is built with `x86-v4`: its AVX-512 microkernels where the CPU has them); the
-//! weight gradient one `gemm` per offset; the rest as im2col tiles × `gemm` — which `conv3d`,
+//! weight gradient in the same register tiles turned around (`blocked::grad_weight`: (kernel
+//! offset, input channel) pairs × output channels, summed over positions) where it has 16 to 64
+//! output channels, else one `gemm` per offset; the rest as im2col tiles × `gemm` — which `conv3d`,
 //! `conv2d` (one plane) and the `forward`/`forward2d` helpers of burn's conv modules run on `flex`
 //! — every convolution of stage 1, the blending network, VGG16 and LPIPS; `norm.rs` layer
 //! normalisation over the channel axis without permutes; `pool.rs` max pooling (VGG16's and
@@ -1149,16 +1151,31 @@ mod tests {
                 Distribution::Uniform(-1.0, 1.0),
                 &dev,
             ));
-            let (ours, theirs) = (
-                grad_weight_direct(&s, &x, &gy),
-                im2col_grad_weight(&s, &x, &gy),
-            );
-            let err = max_diff(&ours, &theirs);
+            let theirs = im2col_grad_weight(&s, &x, &gy);
+            let mut ours = vec![("direct", grad_weight_direct(&s, &x, &gy))];
+            // The register-blocked weight gradient at both widths: the same sums in the same
+            // order, so the same bits.
+            #[cfg(target_arch = "x86_64")]
+            if blocked::applies(&s) {
+                use blocked::Width;
+                let wide = blocked::grad_weight_at(&s, &x, &gy, Width::Widest);
+                let narrow = blocked::grad_weight_at(&s, &x, &gy, Width::Avx2);
+                assert!(
+                    wide.iter()
+                        .zip(&narrow)
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{s:?}: the blocked weight gradient differs between widths"
+                );
+                ours.push(("blocked", wide));
+            }
             let scale = theirs.iter().fold(1.0f32, |m, v| m.max(v.abs()));
-            assert!(
-                err <= 1e-5 * scale,
-                "{s:?}: weight gradient differs by {err} (scale {scale})"
-            );
+            for (name, ours) in ours {
+                let err = max_diff(&ours, &theirs);
+                assert!(
+                    err <= 1e-5 * scale,
+                    "{s:?}: {name} weight gradient differs by {err} (scale {scale})"
+                );
+            }
         }
     }
 
@@ -1166,7 +1183,21 @@ mod tests {
     #[ignore = "timing, run by hand"]
     fn direct_against_im2col_timing() {
         let dev = Device::flex();
-        let shapes: [Case; 15] = [
+        let shapes: [Case; 19] = [
+            // The width-16 stage 1 (D = 16): the middle, the decoder and a strided layer.
+            (5, 64, 64, [16, 16, 16], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            (5, 64, 32, [16, 32, 32], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            (5, 32, 16, [16, 64, 64], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            (
+                5,
+                32,
+                64,
+                [16, 32, 32],
+                [3, 3, 3],
+                [1, 2, 2],
+                [1; 3],
+                [1; 3],
+            ),
             (5, 6, 8, [8, 64, 64], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
             (5, 8, 16, [8, 64, 64], [3, 3, 3], [1, 2, 2], [1; 3], [1; 3]),
             (5, 16, 32, [8, 32, 32], [3, 3, 3], [1, 2, 2], [1; 3], [1; 3]),
@@ -1221,19 +1252,31 @@ mod tests {
                 Distribution::Uniform(-1.0, 1.0),
                 &dev,
             ));
-            let (mut a, mut b, mut c, mut d) = (0.0, 0.0, 0.0, 0.0);
+            let (mut a, mut b, mut c, mut d, mut e) = (0.0, 0.0, 0.0, 0.0, f64::NAN);
             for _ in 0..3 {
                 a += time(&|| im2col_forward(&s, &x, &w, None));
                 b += time(&|| forward_direct(&s, &x, &w, None));
                 c += time(&|| im2col_grad_weight(&s, &x, &gy));
                 d += time(&|| grad_weight_direct(&s, &x, &gy));
             }
+            #[cfg(target_arch = "x86_64")]
+            if blocked::applies(&s) {
+                e = (0..3)
+                    .map(|_| time(&|| blocked::grad_weight(&s, &x, &gy)))
+                    .sum::<f64>();
+            }
             println!(
-                "{cin}->{cout} {input:?} stride {stride:?} dil {dilation:?}: forward im2col {:.2} ms, direct {:.2} ms; weight gradient {:.2} / {:.2} ms",
+                "{cin}->{cout} {input:?} stride {stride:?} dil {dilation:?}: forward im2col {:.2} ms, direct {:.2} ms; weight gradient {:.2} / {:.2} / blocked {:.2} ms{}",
                 a / 3.0,
                 b / 3.0,
                 c / 3.0,
-                d / 3.0
+                d / 3.0,
+                e / 3.0,
+                if blocked_grad_weight_applies(&s) {
+                    " (blocked used)"
+                } else {
+                    ""
+                }
             );
         }
     }

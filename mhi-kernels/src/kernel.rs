@@ -1162,10 +1162,18 @@ pub mod blocked {
                     gyt.resize(q * s.cout, 0.0);
                     let b = job.0;
                     p.for_each_row(s, job, |at, col, n| {
-                        for co in 0..s.cout {
-                            let from = (b * s.cout + co) * sp + at;
-                            for (i, &v) in gy[from..from + n].iter().enumerate() {
-                                gyt[(col + i) * s.cout + co] = v;
+                        // Eight channels at a time: eight read streams, runs of eight written
+                        // (channel by channel it wrote one float per cache line).
+                        for c0 in (0..s.cout).step_by(8) {
+                            let rows: [&[f32]; 8] = std::array::from_fn(|c| {
+                                let from = (b * s.cout + c0 + c) * sp + at;
+                                &gy[from..from + n]
+                            });
+                            let dst = &mut gyt[col * s.cout..(col + n) * s.cout];
+                            for (i, run) in dst.chunks_exact_mut(s.cout).enumerate() {
+                                for (c, d) in run[c0..c0 + 8].iter_mut().enumerate() {
+                                    *d = rows[c][i];
+                                }
                             }
                         }
                     });

@@ -16,7 +16,7 @@
 //! let frame = |row: usize, path: &str| Frame { row: cams.rows[row], path: path.into() };
 //! let rf = load_frame(&frame(0, "a.png"), Some((448, 256)), Fit::Stretch)?;
 //! let sf = load_frame(&frame(1, "b.png"), Some((448, 256)), Fit::Stretch)?;
-//! let model = Model::load("models/mhi-n5d16-colour".as_ref(), Device::flex())?;
+//! let model = Model::load("models/mhi-n5d16-colour-w16".as_ref(), Device::flex())?;
 //! let synth = ViewSynthesis::new(MhiSource::Learned(&model));
 //! let (mhi, _times) = synth.mhi(&rf, &sf)?;
 //! let target = cams.rows[2].camera(448, 256)?;

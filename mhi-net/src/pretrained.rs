@@ -4,9 +4,9 @@
 use std::path::{Path, PathBuf};
 
 /// Folder name of the pretrained model under `models/`.
-pub const PRETRAINED_NAME: &str = "mhi-n5d16-colour";
+pub const PRETRAINED_NAME: &str = "mhi-n5d16-colour-w16";
 
-/// The pretrained model's directory (`models/mhi-n5d16-colour` at the repository root), whether or not
+/// The pretrained model's directory (`models/mhi-n5d16-colour-w16` at the repository root), whether or not
 /// it exists.
 pub fn pretrained_dir() -> PathBuf {
     let crate_dir = Path::new(env!("CARGO_MANIFEST_DIR"));

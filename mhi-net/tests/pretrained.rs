@@ -1,14 +1,15 @@
 //! The pretrained model shipped in `models/` loads, is the model its MODEL.md describes (the
-//! sweep prior, N = 5, D = 16, a colour head), and a copy whose config.json no longer matches its
-//! weights is refused with a message that says so; the MPI baseline beside it shares its recipe;
-//! the previous pretrained model (no colour head) and its MPI still load.
+//! sweep prior, N = 5, D = 16, a colour head, a stage 1 of width 16), and a copy whose
+//! config.json no longer matches its weights is refused with a message that says so; the MPI
+//! baseline beside it shares its recipe; the previous pretrained models (width 8, with and
+//! without a colour head) and their MPIs still load.
 
 use std::path::{Path, PathBuf};
 
 use burn::tensor::Device;
 use mhi_net::{Model, Prior};
 
-/// Rounds of blending steps in the shipped MHI's training (one: 3,900 stage-1 steps, then 400
+/// Rounds of blending steps in the shipped MHI's training (one: 8,400 stage-1 steps, then 400
 /// blending steps).
 const BLEND_ROUNDS: usize = 1;
 
@@ -20,7 +21,7 @@ fn model(name: &str) -> PathBuf {
 
 /// The model `render` and `eval` use by default (`mhi_net::pretrained`).
 fn shipped() -> PathBuf {
-    model("mhi-n5d16-colour")
+    model("mhi-n5d16-colour-w16")
 }
 
 fn copy_dir(from: &Path, to: &Path) {
@@ -49,6 +50,7 @@ fn the_shipped_model_loads_and_a_mismatched_config_is_refused() {
         m.config().stage1.unet.colour_head,
         "the shipped model has a colour head"
     );
+    assert_eq!(m.config().stage1.unet.width, 16);
     assert_eq!((m.normals().len(), m.depths().len()), (5, 16));
     assert!(
         m.blend_trained(),
@@ -60,7 +62,7 @@ fn the_shipped_model_loads_and_a_mismatched_config_is_refused() {
     let cfg = d.path().join("config.json");
     let mut v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&cfg).unwrap()).unwrap();
-    v["stage1"]["unet"]["width"] = serde_json::json!(16);
+    v["stage1"]["unet"]["width"] = serde_json::json!(8);
     std::fs::write(&cfg, serde_json::to_string(&v).unwrap()).unwrap();
     let err = Model::load(d.path(), Device::flex())
         .err()
@@ -75,13 +77,18 @@ fn the_shipped_model_loads_and_a_mismatched_config_is_refused() {
 /// The learned MPI baseline shipped beside it has the same recipe with one normal.
 #[test]
 fn the_mpi_baseline_loads_with_the_same_recipe() {
-    let mpi = Model::load(&model("mpi-n1d16-colour"), Device::flex()).unwrap();
+    let mpi = Model::load(&model("mpi-n1d16-colour-w16"), Device::flex()).unwrap();
     let mhi = Model::load(&shipped(), Device::flex()).unwrap();
     assert_eq!((mpi.normals().len(), mpi.depths().len()), (1, 16));
     let (a, b) = (mpi.config(), mhi.config());
     assert_eq!(a.prior, b.prior);
     assert_eq!((a.width, a.height, a.lr), (b.width, b.height, b.lr));
     assert_eq!(a.stage1.scale, b.stage1.scale);
+    assert_eq!(a.stage1.unet.width, b.stage1.unet.width);
+    assert_eq!(
+        (a.lr_drop_at, a.lr_drop_factor),
+        (b.lr_drop_at, b.lr_drop_factor)
+    );
     assert!(a.stage1.unet.colour_head && b.stage1.unet.colour_head);
     assert_eq!(a.data, b.data);
     // The same stage-1 steps: the MHI's config counts its blending steps into phase 1's end
@@ -107,4 +114,18 @@ fn the_previous_model_and_its_mpi_still_load() {
     assert_eq!(mpi.step(), a.phase1_steps);
     assert_eq!(a.phase1_steps, b.phase1_steps - 3 * 400);
     assert_eq!(mhi.step(), b.phase1_steps + b.phase2_steps);
+}
+
+/// The pretrained model before the current one (width 8, 3,900 stage-1 steps and 400 blending
+/// steps) and its MPI still load, with the same recipe.
+#[test]
+fn the_width_8_model_and_its_mpi_still_load() {
+    let mhi = Model::load(&model("mhi-n5d16-colour"), Device::flex()).unwrap();
+    let mpi = Model::load(&model("mpi-n1d16-colour"), Device::flex()).unwrap();
+    let (a, b) = (mpi.config(), mhi.config());
+    assert_eq!((a.stage1.unet.width, b.stage1.unet.width), (8, 8));
+    assert!(a.stage1.unet.colour_head && b.stage1.unet.colour_head);
+    assert_eq!((mpi.normals().len(), mhi.normals().len()), (1, 5));
+    assert_eq!(mpi.step(), a.phase1_steps);
+    assert_eq!((a.phase1_steps, mhi.step()), (3_900, 4_300));
 }

@@ -57,7 +57,7 @@ pub struct RenderArgs {
     /// the angle between each normal and the pixel's ray; it also lets the render leave out
     /// normals a view does not need) or `learned` (the model's blending network). Soft is the
     /// default because the pretrained model's network does not beat it on validation data
-    /// (models/mhi-n5d16-colour/MODEL.md) and costs ~13 % more per view.
+    /// (models/mhi-n5d16-colour-w16/MODEL.md) and costs ~8 % more per view.
     #[arg(long, value_enum, default_value_t = BlendArg::Soft)]
     pub blend: BlendArg,
     /// Working size WIDTHxHEIGHT (photos are resized, intrinsics follow). A trained model needs

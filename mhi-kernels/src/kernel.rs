@@ -1334,98 +1334,74 @@ pub mod blocked {
         ow: usize,
     }
 
-    /// One weight-gradient tile: `sums[j · L · NV + L v + l]` = Σ over the segment's kept
-    /// positions g of `data[origin_j + g] · gyt[(col + g) · cout + co0 + L v + l]`.
-    ///
-    /// # Safety
-    /// The CPU has AVX2 and FMA.
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn gw_tile<const NV: usize, const P: usize>(
-        t: &GwTile<'_>,
-        pairs: &[(usize, usize)],
-        sums: &mut [f32],
-    ) {
-        let mut acc = [[_mm256_setzero_ps(); NV]; P];
-        let origins: [usize; P] = std::array::from_fn(|j| pairs[j].1);
-        // Every read below lies inside `data` and `gyt`: checked once per tile here, so that
-        // the inner loop runs on raw pointers.
-        let last = (t.rows.max(1) - 1) * t.wq + t.ow;
-        assert!(origins.iter().all(|&o| o + last <= t.data.len()));
-        assert!((t.col + last) * t.cout <= t.gyt.len() && t.co0 + 8 * NV <= t.cout);
-        for r in 0..t.rows {
-            let g0 = r * t.wq;
-            // SAFETY: within the bounds asserted above.
-            let xs: [*const f32; P] =
-                std::array::from_fn(|j| unsafe { t.data.as_ptr().add(origins[j] + g0) });
-            let gs = unsafe { t.gyt.as_ptr().add((t.col + g0) * t.cout + t.co0) };
-            for i in 0..t.ow {
-                // SAFETY: position i < ow of the row, inside the asserted bounds.
-                unsafe {
-                    let gp = gs.add(i * t.cout);
-                    let g: [__m256; NV] = std::array::from_fn(|v| _mm256_loadu_ps(gp.add(8 * v)));
-                    for (a, x) in acc.iter_mut().zip(&xs) {
-                        let x = _mm256_set1_ps(*x.add(i));
-                        for (r, gv) in a.iter_mut().zip(&g) {
-                            *r = _mm256_fmadd_ps(x, *gv, *r);
+    /// Defines a weight-gradient tile for one vector type (the AVX2 and the AVX-512 tiles are the
+    /// same code over their vectors).
+    macro_rules! gw_tile {
+        ($(#[$doc:meta])* $name:ident, $feature:literal, $v:ty, $l:literal,
+         $zero:ident, $load:ident, $set1:ident, $fmadd:ident) => {
+            $(#[$doc])*
+            #[target_feature(enable = $feature)]
+            unsafe fn $name<const NV: usize, const P: usize>(
+                t: &GwTile<'_>,
+                pairs: &[(usize, usize)],
+                sums: &mut [f32],
+            ) {
+                let mut acc = [[$zero(); NV]; P];
+                let origins: [usize; P] = std::array::from_fn(|j| pairs[j].1);
+                // Every read below lies inside `data` and `gyt`: checked once per tile here, so
+                // that the inner loop runs on raw pointers.
+                let last = (t.rows.max(1) - 1) * t.wq + t.ow;
+                assert!(origins.iter().all(|&o| o + last <= t.data.len()));
+                assert!((t.col + last) * t.cout <= t.gyt.len() && t.co0 + $l * NV <= t.cout);
+                for r in 0..t.rows {
+                    let g0 = r * t.wq;
+                    // SAFETY: within the bounds asserted above.
+                    let xs: [*const f32; P] =
+                        std::array::from_fn(|j| unsafe { t.data.as_ptr().add(origins[j] + g0) });
+                    let gs = unsafe { t.gyt.as_ptr().add((t.col + g0) * t.cout + t.co0) };
+                    for i in 0..t.ow {
+                        // SAFETY: position i < ow of the row, inside the asserted bounds.
+                        unsafe {
+                            let gp = gs.add(i * t.cout);
+                            let g: [$v; NV] = std::array::from_fn(|v| $load(gp.add($l * v)));
+                            for (a, x) in acc.iter_mut().zip(&xs) {
+                                let x = $set1(*x.add(i));
+                                for (r, gv) in a.iter_mut().zip(&g) {
+                                    *r = $fmadd(x, *gv, *r);
+                                }
+                            }
                         }
                     }
                 }
+                for (j, a) in acc.iter().enumerate() {
+                    for (v, r) in a.iter().enumerate() {
+                        // SAFETY: a plain transmute of a vector into its floats.
+                        let vals = unsafe { std::mem::transmute::<$v, [f32; $l]>(*r) };
+                        sums[j * $l * NV + $l * v..][..$l].copy_from_slice(&vals);
+                    }
+                }
             }
-        }
-        for (j, a) in acc.iter().enumerate() {
-            for (v, r) in a.iter().enumerate() {
-                // SAFETY: a plain transmute of a vector into 8 floats.
-                let vals = unsafe { std::mem::transmute::<__m256, [f32; 8]>(*r) };
-                sums[j * 8 * NV + 8 * v..][..8].copy_from_slice(&vals);
-            }
-        }
+        };
     }
 
-    /// [`gw_tile`] with vectors of 16 output channels.
-    ///
-    /// # Safety
-    /// The CPU has AVX-512F.
-    #[target_feature(enable = "avx512f")]
-    unsafe fn gw_tile512<const NV: usize, const P: usize>(
-        t: &GwTile<'_>,
-        pairs: &[(usize, usize)],
-        sums: &mut [f32],
-    ) {
-        let mut acc = [[_mm512_setzero_ps(); NV]; P];
-        let origins: [usize; P] = std::array::from_fn(|j| pairs[j].1);
-        // Every read below lies inside `data` and `gyt`: checked once per tile here, so that
-        // the inner loop runs on raw pointers.
-        let last = (t.rows.max(1) - 1) * t.wq + t.ow;
-        assert!(origins.iter().all(|&o| o + last <= t.data.len()));
-        assert!((t.col + last) * t.cout <= t.gyt.len() && t.co0 + 16 * NV <= t.cout);
-        for r in 0..t.rows {
-            let g0 = r * t.wq;
-            // SAFETY: within the bounds asserted above.
-            let xs: [*const f32; P] =
-                std::array::from_fn(|j| unsafe { t.data.as_ptr().add(origins[j] + g0) });
-            let gs = unsafe { t.gyt.as_ptr().add((t.col + g0) * t.cout + t.co0) };
-            for i in 0..t.ow {
-                // SAFETY: position i < ow of the row, inside the asserted bounds.
-                unsafe {
-                    let gp = gs.add(i * t.cout);
-                    let g: [__m512; NV] = std::array::from_fn(|v| _mm512_loadu_ps(gp.add(16 * v)));
-                    for (a, x) in acc.iter_mut().zip(&xs) {
-                        let x = _mm512_set1_ps(*x.add(i));
-                        for (r, gv) in a.iter_mut().zip(&g) {
-                            *r = _mm512_fmadd_ps(x, *gv, *r);
-                        }
-                    }
-                }
-            }
-        }
-        for (j, a) in acc.iter().enumerate() {
-            for (v, r) in a.iter().enumerate() {
-                // SAFETY: a plain transmute of a vector into 16 floats.
-                let vals = unsafe { std::mem::transmute::<__m512, [f32; 16]>(*r) };
-                sums[j * 16 * NV + 16 * v..][..16].copy_from_slice(&vals);
-            }
-        }
-    }
+    gw_tile!(
+        /// One weight-gradient tile: `sums[j · 8 · NV + 8 v + l]` = Σ over the segment's kept
+        /// positions g of `data[origin_j + g] · gyt[(col + g) · cout + co0 + 8 v + l]`.
+        ///
+        /// # Safety
+        /// The CPU has AVX2 and FMA.
+        gw_tile, "avx2,fma", __m256, 8,
+        _mm256_setzero_ps, _mm256_loadu_ps, _mm256_set1_ps, _mm256_fmadd_ps
+    );
+
+    gw_tile!(
+        /// [`gw_tile`] with vectors of 16 output channels.
+        ///
+        /// # Safety
+        /// The CPU has AVX-512F.
+        gw_tile512, "avx512f", __m512, 16,
+        _mm512_setzero_ps, _mm512_loadu_ps, _mm512_set1_ps, _mm512_fmadd_ps
+    );
 
     /// One tile: `wide[at + (8 v + l) · q + i]` = Σ over taps `(k, origin)` and input channels
     /// of `data[origin + g + i + ci · chan] · w[k][ci][v][l]`, for `i < P`. Safe indexing only

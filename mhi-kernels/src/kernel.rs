@@ -1272,6 +1272,7 @@ pub mod blocked {
                         let first = pairs[0];
                         pairs.resize(real.div_ceil(pairs_per_tile) * pairs_per_tile, first);
                         let rows = len / wq;
+                        let mut sums = vec![0.0f32; pairs_per_tile * lanes];
                         for (t, tile) in pairs.chunks_exact(pairs_per_tile).enumerate() {
                             let keep = (real - t * pairs_per_tile).min(pairs_per_tile);
                             for ob in 0..s.cout / lanes {
@@ -1285,7 +1286,7 @@ pub mod blocked {
                                     wq,
                                     ow,
                                 };
-                                let mut sums = vec![0.0f32; pairs_per_tile * lanes];
+                                // Every element of `sums` is overwritten by the tile.
                                 // SAFETY: the features were detected (`avx512_applies`,
                                 // `applies`).
                                 unsafe {

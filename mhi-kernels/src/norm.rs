@@ -52,7 +52,7 @@ fn stats(s: &NormShape, x: &[f32], eps: f64) -> (Vec<f32>, Vec<f32>) {
 
 /// `y = (x − mean) / sqrt(var + eps) · gamma + beta`, statistics over the channels.
 pub fn forward(s: &NormShape, x: &[f32], gamma: &[f32], beta: &[f32], eps: f64) -> Vec<f32> {
-    debug_assert_eq!(x.len(), s.batch * s.channels * s.positions);
+    assert_eq!(x.len(), s.batch * s.channels * s.positions);
     let (c, n) = (s.channels, s.positions);
     let (mean, rstd) = stats(s, x, eps);
     let mut y = vec![0.0f32; x.len()];
@@ -78,7 +78,7 @@ pub fn backward(
     gy: &[f32],
     eps: f64,
 ) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
-    debug_assert_eq!(x.len(), s.batch * s.channels * s.positions);
+    assert_eq!(x.len(), s.batch * s.channels * s.positions);
     let (c, n) = (s.channels, s.positions);
     let (mean, rstd) = stats(s, x, eps);
     // Per position: a = mean_c(gy · gamma), b = mean_c(gy · gamma · x̂).

@@ -33,6 +33,7 @@
 //! ```
 
 mod bilinear;
+mod consistency;
 pub mod coverage;
 mod cpu;
 #[cfg(feature = "diff")]
@@ -45,6 +46,7 @@ pub mod reference;
 pub mod stability;
 mod sweep;
 
+pub use consistency::{consistent_weights, inconsistency_mhi};
 pub use cpu::{
     Blend, Prune, RenderOptions, RenderStats, Rendered, TILE_H, TILE_W, W_EPS, combine,
     heuristic_weights, heuristic_weights_for, needed_share, needed_share_per_normal, render,

@@ -125,6 +125,10 @@ pub struct TrainConfig {
     /// `c = 1e-3` the alphas the sweep is sure of barely move under training.
     #[config(default = "None")]
     pub prior_clamp: Option<f32>,
+    /// The run whose trained stage 1 this run started from (`Trainer::new_on_stage1`), as
+    /// given; `None` for a run whose stage 1 started untrained.
+    #[config(default = "None")]
+    pub stage1_from: Option<String>,
 }
 
 impl TrainConfig {
@@ -165,6 +169,7 @@ impl TrainConfig {
                 "prior_temperature",
                 "prior_invalid_cost",
                 "prior_clamp",
+                "stage1_from",
             ] {
                 o.entry(key).or_insert(serde_json::Value::Null);
             }
@@ -272,6 +277,13 @@ impl TrainConfig {
     pub(crate) fn validate(&self) -> crate::Result<()> {
         self.check_sizes()?;
         self.normal_set()?;
+        if let Some(beta) = self.blend.consistency
+            && !(beta.is_finite() && beta >= 0.0)
+        {
+            return Err(Error::Config(format!(
+                "blend.consistency is {beta}: the consistent blend's strength must be finite and at least 0"
+            )));
+        }
         let m = self.size_multiple();
         if !(self.width as usize).is_multiple_of(m) || !(self.height as usize).is_multiple_of(m) {
             return Err(Error::Config(format!(
@@ -408,6 +420,23 @@ impl TrainConfig {
         Ok(())
     }
 
+    /// What stage 1's weights mean: its network, the grid and the prior. Two runs that agree
+    /// on it can share a trained stage 1 (`Trainer::new_on_stage1`).
+    pub fn stage1_signature(&self) -> String {
+        serde_json::json!([
+            self.stage1,
+            self.planes,
+            self.near,
+            self.far,
+            self.prior,
+            self.prior_window_radius,
+            self.prior_temperature,
+            self.prior_invalid_cost,
+            self.prior_clamp,
+        ])
+        .to_string()
+    }
+
     /// A fingerprint of everything that shapes the networks or what their weights mean (the
     /// networks' configs, the grid, the prior), stored with every checkpoint: weights of another
     /// model whose tensors happen to have the same shapes are refused instead of loaded.
@@ -415,10 +444,13 @@ impl TrainConfig {
         // A blend option added after runs were trained is left out while off, so that their
         // checkpoints keep the fingerprint they were written with.
         let mut blend = serde_json::to_value(&self.blend).unwrap_or_default();
-        if let Some(o) = blend.as_object_mut()
-            && o.get("disagreement") == Some(&serde_json::Value::Bool(false))
-        {
-            o.remove("disagreement");
+        if let Some(o) = blend.as_object_mut() {
+            if o.get("disagreement") == Some(&serde_json::Value::Bool(false)) {
+                o.remove("disagreement");
+            }
+            if o.get("consistency") == Some(&serde_json::Value::Null) {
+                o.remove("consistency");
+            }
         }
         let v = serde_json::json!([
             self.stage1,

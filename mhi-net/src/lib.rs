@@ -67,8 +67,8 @@ pub use train::{
     CSV_HEADER, EvalScores, Sample, StepReport, StepTimes, Trainer, VAL_CSV_HEADER, init_models,
 };
 pub use view::{
-    BlendChoice, Blended, MhiSource, MhiTimes, MultiNormal, View, ViewSynthesis, multi_normal,
-    render_image, render_view,
+    BlendChoice, Blended, CONSISTENCY_BETA, Consistency, MhiSource, MhiTimes, MultiNormal, View,
+    ViewSynthesis, inconsistency, multi_normal, render_image, render_view,
 };
 pub use volume::{
     LOGIT_INPUT_SCALE, PRIOR_EPS, Prior, SourceColour, Stage1Input, SweepPrior, cost_volume,

@@ -220,9 +220,22 @@ impl Model {
         .map_err(Error::from)
     }
 
+    /// The β of a blending network that reads each normal's photo-inconsistency, `None` for
+    /// one that does not (see [`Self::blend_weights`]).
+    pub fn blend_consistency(&self) -> Option<f32> {
+        self.config.blend.consistency
+    }
+
     /// Stage 2: per-pixel blending weights `N × H × W` (normal-major, summing to 1) from the N
-    /// multi-normal images and their Soft weights (`N × H × W`) on the target grid.
-    pub fn blend_weights(&self, mni: &[Rgb32FImage], soft: &[f32]) -> crate::Result<Vec<f32>> {
+    /// multi-normal images and their Soft weights (`N × H × W`) on the target grid, and for a
+    /// network that reads them ([`Self::blend_consistency`]) the N inconsistency images of the
+    /// same view (`crate::inconsistency`).
+    pub fn blend_weights(
+        &self,
+        mni: &[Rgb32FImage],
+        soft: &[f32],
+        inconsistency: Option<&[Rgb32FImage]>,
+    ) -> crate::Result<Vec<f32>> {
         let n = self.normals.len();
         let Some(first) = mni.first() else {
             return Err(Error::Config("no multi-normal image".into()));
@@ -240,13 +253,38 @@ impl Model {
             .iter()
             .map(|m| image_to_tensor(m, &self.device))
             .collect();
-        let input = Tensor::cat(
-            vec![
-                Tensor::cat(images, 0).reshape([1, 3 * n, h, w]),
-                Tensor::from_data(TensorData::new(soft.to_vec(), [1, n, h, w]), &self.device),
-            ],
-            1,
-        );
+        let mut parts = vec![
+            Tensor::cat(images, 0).reshape([1, 3 * n, h, w]),
+            Tensor::from_data(TensorData::new(soft.to_vec(), [1, n, h, w]), &self.device),
+        ];
+        match (self.config.blend.consistency, inconsistency) {
+            (None, _) => {}
+            (Some(_), None) => {
+                return Err(Error::Config(
+                    "this model's blending network reads each normal's photo-inconsistency: blend it through mhi_net::Consistency".into(),
+                ));
+            }
+            (Some(_), Some(inc)) => {
+                if inc.len() != n || inc.iter().any(|m| m.dimensions() != first.dimensions()) {
+                    return Err(Error::Config(format!(
+                        "expected {n} inconsistency images of {w}x{h}"
+                    )));
+                }
+                let mut c = Vec::with_capacity(n * w * h);
+                for m in inc {
+                    c.extend(
+                        m.as_raw()
+                            .chunks_exact(3)
+                            .map(|p| (p[0] + p[1] + p[2]) / 3.0),
+                    );
+                }
+                parts.push(Tensor::from_data(
+                    TensorData::new(c, [1, n, h, w]),
+                    &self.device,
+                ));
+            }
+        }
+        let input = Tensor::cat(parts, 1);
         let v: Vec<f32> = self
             .blend
             .forward(input)

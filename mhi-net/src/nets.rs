@@ -530,6 +530,12 @@ pub struct BlendNetConfig {
     /// differ.
     #[config(default = false)]
     pub disagreement: bool,
+    /// Also show the network each normal's photo-inconsistency (`mhi_render::inconsistency_mhi`:
+    /// N more input channels, after the heuristic weights) and, with a residual head, correct
+    /// the consistent blend's log weights, `log w_Soft − β · c`, instead of Soft's: the untrained
+    /// network blends as `mhi_render::consistent_weights` does with this β.
+    #[config(default = "None")]
+    pub consistency: Option<f32>,
 }
 
 /// Convolution, layer normalisation over channels, ReLU (2D).
@@ -568,6 +574,7 @@ pub struct BlendNet {
     head: Conv2d,
     residual: bool,
     disagreement: bool,
+    consistency: Option<f32>,
 }
 
 impl BlendNetConfig {
@@ -577,7 +584,8 @@ impl BlendNetConfig {
         let ch = |l: usize| w << l;
         BlendNet {
             stem: Block2d::new(
-                if self.disagreement { 5 } else { 4 } * self.normals,
+                (4 + usize::from(self.disagreement) + usize::from(self.consistency.is_some()))
+                    * self.normals,
                 w,
                 1,
                 device,
@@ -601,22 +609,34 @@ impl BlendNetConfig {
             ),
             residual: self.residual,
             disagreement: self.disagreement,
+            consistency: self.consistency,
         }
     }
 }
 
 impl BlendNet {
+    /// The β of a network that reads each normal's photo-inconsistency
+    /// ([`BlendNetConfig::consistency`]), `None` for one that does not.
+    pub fn consistency(&self) -> Option<f32> {
+        self.consistency
+    }
+
     /// Blending weights.
     ///
     /// # Shapes
-    /// `[1, 4N, H, W]` (the N multi-normal images and their heuristic weight) → `[1, N, H, W]`,
-    /// a softmax over N at every pixel
+    /// `[1, 4N, H, W]` (the N multi-normal images and their heuristic weight; with
+    /// [`BlendNetConfig::consistency`] `[1, 5N, H, W]`, their inconsistency after) →
+    /// `[1, N, H, W]`, a softmax over N at every pixel
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         let [_, c, _, _] = x.dims();
-        let n = c / 4;
-        let prior = self
-            .residual
-            .then(|| x.clone().narrow(1, 3 * n, n).clamp_min(SOFT_FLOOR).log());
+        let n = c / if self.consistency.is_some() { 5 } else { 4 };
+        let prior = self.residual.then(|| {
+            let log_soft = x.clone().narrow(1, 3 * n, n).clamp_min(SOFT_FLOOR).log();
+            match self.consistency {
+                Some(beta) => log_soft - x.clone().narrow(1, 4 * n, n) * beta,
+                None => log_soft,
+            }
+        });
         let x = if self.disagreement {
             let [b, _, h, w] = x.dims();
             let images = x.clone().narrow(1, 0, 3 * n).reshape([b, n, 3, h, w]);

@@ -110,11 +110,51 @@ impl Trainer {
     /// the `train` split of `data_root`), minimising `loss` (its name is recorded in
     /// `config.json`).
     pub fn new(
+        config: TrainConfig,
+        dir: &Path,
+        data_root: &Path,
+        loss: TrainLoss,
+        device: Device,
+    ) -> crate::Result<Self> {
+        Self::start(config, dir, data_root, loss, device, None)
+    }
+
+    /// As [`Self::new`], with stage 1 taken from the latest checkpoint of the trained run
+    /// `from` (recorded as `config.stage1_from`), e.g. to train only a new blending network
+    /// on it (`phase1_steps` 0). The two runs must agree on stage 1's network, grid and prior
+    /// ([`TrainConfig::stage1_signature`]).
+    ///
+    /// # Errors
+    /// As [`Self::new`]; if `from` holds no run with a checkpoint, or its stage 1 differs.
+    pub fn new_on_stage1(
         mut config: TrainConfig,
         dir: &Path,
         data_root: &Path,
         loss: TrainLoss,
         device: Device,
+        from: &Path,
+    ) -> crate::Result<Self> {
+        let run = RunDir::new(from);
+        let theirs = run.config()?;
+        if theirs.stage1_signature() != config.stage1_signature() {
+            return Err(Error::Config(format!(
+                "{}: its stage 1 (network, planes, depth range, prior) differs from this run's, so its weights cannot start this run",
+                from.display()
+            )));
+        }
+        let latest = run.latest()?;
+        let (stage1, _) = load_networks(&theirs, &from.join(&latest.dir), &device)?;
+        config.stage1_from = Some(format!("{} (step {})", from.display(), latest.step));
+        Self::start(config, dir, data_root, loss, device, Some(stage1))
+    }
+
+    fn start(
+        mut config: TrainConfig,
+        dir: &Path,
+        data_root: &Path,
+        loss: TrainLoss,
+        device: Device,
+        stage1: Option<Stage1>,
     ) -> crate::Result<Self> {
         config.validate()?;
         if RunDir::new(dir).config_path().exists() {
@@ -130,7 +170,8 @@ impl Trainer {
         config.loss_kind = loss.kind();
         // The data is opened (and the data sources filled in) before anything is written, so a
         // start that fails leaves no half-made run behind.
-        let (stage1, blend) = init_models(&config, &device);
+        let (fresh, blend) = init_models(&config, &device);
+        let stage1 = stage1.unwrap_or(fresh);
         let mut t = Self::assemble(config, dir, data_root, device, stage1, blend, loss, 0, 0.0)?;
         // The folder must be new, empty, or a run folder whose start was interrupted: never
         // one holding the user's files.
@@ -428,6 +469,12 @@ impl Trainer {
             ..StepTimes::default()
         };
         let t1 = Instant::now();
+        // A blending network that reads each normal's photo-inconsistency gets its layer
+        // colours from the stage-1 input (the source warped onto every plane) before stage 1
+        // takes it.
+        let inc_colour = (phase == 2)
+            .then(|| self.inconsistency_colour(&input, &device))
+            .flatten();
         let layers = if phase == 1 {
             alphas_of(&self.stage1, input)
         } else {
@@ -444,12 +491,14 @@ impl Trainer {
             target,
             ..
         } = &inputs;
+        let inc =
+            inc_colour.map(|c| inconsistency_of(layers.alpha.clone(), c.autodiff(), geom, soft));
         let color = layers.colour_or(color);
         let (_, mni) = render_shared(layers.alpha, color, geom, soft.clone());
         let output = if phase == 1 {
             mni
         } else {
-            learned_blend(&self.blend, mni.detach(), soft.clone())
+            learned_blend(&self.blend, mni.detach(), soft.clone(), inc)
         };
         times.render_ms = ms(t2);
         let t3 = Instant::now();
@@ -496,6 +545,13 @@ impl Trainer {
     /// record no graph.
     fn plain(&self) -> Device {
         self.device.clone().without_autodiff()
+    }
+
+    /// The layer colours of each normal's photo-inconsistency (`[N·D, 3, H, W]`, see
+    /// [`crate::SourceColour::inconsistency`]) when the blending network reads them.
+    fn inconsistency_colour(&self, input: &Stage1Input, device: &Device) -> Option<Tensor<4>> {
+        self.config.blend.consistency?;
+        input.colour.as_ref().map(|c| c.inconsistency(device))
     }
 
     /// Stage 1's layers from a cost volume on the plain device, recording no graph.
@@ -549,7 +605,9 @@ impl Trainer {
                 .as_ref()
                 .map(|c| (c, self.config.prior_eps())),
             self.config.stage1.scale,
-            self.config.stage1.unet.colour_head,
+            // The plane-sweep volume's colours are kept for a colour head and for a blending
+            // network that reads each normal's photo-inconsistency.
+            self.config.stage1.unet.colour_head || self.config.blend.consistency.is_some(),
             device,
         )
     }
@@ -691,15 +749,19 @@ impl Trainer {
         let blend = self.blend.valid();
         for k in 0..count {
             let s = self.validation_sample(k)?;
-            let layers = self.frozen_alphas_of(self.stage1_input_on(&s, &plain)?);
+            let input = self.stage1_input_on(&s, &plain)?;
+            let inc_colour = self.inconsistency_colour(&input, &plain);
+            let layers = self.frozen_alphas_of(input);
             let inputs = self.render_inputs(&s, &plain)?;
+            let inc = inc_colour
+                .map(|c| inconsistency_of(layers.alpha.clone(), c, &inputs.geom, &inputs.soft));
             let (soft_img, mni) = render_shared(
                 layers.alpha.clone(),
                 layers.colour_or(&inputs.color),
                 &inputs.geom,
                 inputs.soft.clone(),
             );
-            let img = learned_blend(&blend, mni, inputs.soft.clone());
+            let img = learned_blend(&blend, mni, inputs.soft.clone(), inc);
             let target = inputs.target.clone();
             // A run that scores covered pixels is validated on them too: its uncovered pixels
             // are free to drift (no loss there), so whole-image PSNR would mislead.
@@ -778,19 +840,40 @@ impl Layers {
     }
 }
 
+/// Each normal's photo-inconsistency seen from the target, the mean over RGB of the
+/// multi-normal images of the inconsistency layers `colour` (a constant: no gradient).
+///
+/// # Shapes
+/// `alpha` `[N·D, 1, H, W]`, `colour` `[N·D, 3, H, W]` → `[1, N, H, W]`
+fn inconsistency_of(
+    alpha: Tensor<4>,
+    colour: Tensor<4>,
+    geom: &WarpGeometry,
+    soft: &Tensor<4>,
+) -> Tensor<4> {
+    let (_, mni) = render_shared(alpha.detach(), colour, geom, soft.clone());
+    let [n, _, h, w] = mni.dims();
+    mni.detach().mean_dim(1).reshape([1, n, h, w])
+}
+
 /// Stage 2: the blending network's weights applied to the multi-normal images.
 ///
 /// # Shapes
-/// `mni`: `[N, 3, H, W]`, `soft`: `[N, 1, H, W]` → `[1, 3, H, W]`
-fn learned_blend(blend: &BlendNet, mni: Tensor<4>, soft: Tensor<4>) -> Tensor<4> {
+/// `mni`: `[N, 3, H, W]`, `soft`: `[N, 1, H, W]`, `inc` (for a network that reads it)
+/// `[1, N, H, W]` → `[1, 3, H, W]`
+fn learned_blend(
+    blend: &BlendNet,
+    mni: Tensor<4>,
+    soft: Tensor<4>,
+    inc: Option<Tensor<4>>,
+) -> Tensor<4> {
     let [n, _, h, w] = mni.dims();
-    let input = Tensor::cat(
-        vec![
-            mni.clone().reshape([1, 3 * n, h, w]),
-            soft.reshape([1, n, h, w]),
-        ],
-        1,
-    );
+    let mut parts = vec![
+        mni.clone().reshape([1, 3 * n, h, w]),
+        soft.reshape([1, n, h, w]),
+    ];
+    parts.extend(inc);
+    let input = Tensor::cat(parts, 1);
     let weights = blend.forward(input).reshape([n, 1, h, w]);
     mhi_render::diff::blend(mni, weights)
 }

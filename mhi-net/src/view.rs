@@ -11,7 +11,7 @@ use mhi_data::LoadedFrame;
 use mhi_geom::{BlendHeuristic, Camera, NormalSet};
 use mhi_render::{
     Blend, LayerColor, Mhi, PixelTruth, Prune, RenderOptions, RenderStats, SweepConfig, combine,
-    heuristic_weights_for, oracle_alpha, render, sweep_mhi,
+    consistent_weights, heuristic_weights_for, inconsistency_mhi, oracle_alpha, render, sweep_mhi,
 };
 
 use crate::Model;
@@ -314,11 +314,165 @@ impl MultiNormal {
         let heuristic = |h| heuristic_weights_for(mhi.normals(), mhi.reference(), target, h);
         let weights = match (choice, model.filter(|_| mhi.n() > 1)) {
             (BlendChoice::Learned, Some(m)) => {
-                m.blend_weights(&self.images, &heuristic(BlendHeuristic::Soft))?
+                m.blend_weights(&self.images, &heuristic(BlendHeuristic::Soft), None)?
             }
             (BlendChoice::Learned, None) => heuristic(BlendHeuristic::Soft),
             (BlendChoice::Heuristic(h), _) => heuristic(h),
         };
+        let image = combine(&self.images, &weights);
+        Ok(Blended {
+            image,
+            weights,
+            blend_ms: ms(t0),
+        })
+    }
+}
+
+/// The strength β of the consistent blend ([`MultiNormal::blend_consistent`]) when none is
+/// given, chosen on validation data (`docs/EXPERIMENTS.md`).
+pub const CONSISTENCY_BETA: f32 = 20.0;
+
+/// Per normal, the photo-inconsistency of its geometry along each ray of `target`: the
+/// multi-normal images of [`inconsistency_mhi`] (the source photo warped onto every layer, its
+/// distance from the reference photo, composited with the MHI's alphas), rendered exactly: they
+/// set the blend weights, so a budget spent on them would move the weights by more than it
+/// bounds. `reference` and `source` are the pair the MHI was made from. For many views of one
+/// pair, [`Consistency`] builds the layers once.
+///
+/// # Errors
+/// If the reference frame is not the MHI's size, or the render fails.
+pub fn inconsistency(
+    mhi: &Mhi,
+    reference: &LoadedFrame,
+    source: &LoadedFrame,
+    target: &Camera,
+) -> crate::Result<Vec<Rgb32FImage>> {
+    let inc = inconsistency_mhi(mhi, &reference.image, &source.image, &source.camera)?;
+    Ok(multi_normal(&inc, target, Prune::NONE)?.images)
+}
+
+/// The consistent blend of one pair's MHI, ready for any number of views: its inconsistency
+/// layers ([`inconsistency_mhi`], as large as the MHI) and the strength β.
+pub struct Consistency {
+    inconsistency: Mhi,
+    beta: f32,
+}
+
+impl Consistency {
+    /// The inconsistency layers of `mhi`, made from `reference` and `source`, blended with
+    /// strength `beta` ([`CONSISTENCY_BETA`] is the validated default).
+    ///
+    /// # Errors
+    /// If β is negative or not finite, or the reference frame is not the MHI's size.
+    pub fn new(
+        mhi: &Mhi,
+        reference: &LoadedFrame,
+        source: &LoadedFrame,
+        beta: f32,
+    ) -> crate::Result<Self> {
+        if !(beta.is_finite() && beta >= 0.0) {
+            return Err(crate::Error::Config(format!(
+                "the consistency strength must be finite and at least 0, got {beta}"
+            )));
+        }
+        Ok(Self {
+            inconsistency: inconsistency_mhi(mhi, &reference.image, &source.image, &source.camera)?,
+            beta,
+        })
+    }
+
+    /// `mhi` (the MHI this was built for) seen from `target`, blended consistently: its
+    /// multi-normal images within `prune`'s budget, so the blend is too, and the inconsistency
+    /// images that set the weights exactly (see [`inconsistency`]).
+    ///
+    /// # Errors
+    /// If `mhi` is not the MHI this was built for, or the render fails.
+    pub fn render(&self, mhi: &Mhi, target: &Camera, prune: Prune) -> crate::Result<View> {
+        self.render_with(mhi, None, target, prune)
+    }
+
+    /// As [`Self::render`], blended by `model`'s network when it reads each normal's
+    /// photo-inconsistency ([`Model::blend_consistency`]), else consistently.
+    ///
+    /// # Errors
+    /// As [`Self::render`].
+    pub fn render_with(
+        &self,
+        mhi: &Mhi,
+        model: Option<&Model>,
+        target: &Camera,
+        prune: Prune,
+    ) -> crate::Result<View> {
+        if mhi.alpha().len() != self.inconsistency.alpha().len()
+            || mhi.n() != self.inconsistency.n()
+        {
+            return Err(crate::Error::Config(
+                "the consistent blend was built for another MHI".into(),
+            ));
+        }
+        let mn = multi_normal(mhi, target, prune)?;
+        let t0 = Instant::now();
+        let inc = multi_normal(&self.inconsistency, target, Prune::NONE)?;
+        let inc_ms = ms(t0);
+        let b = match model.filter(|m| m.blend_consistency().is_some() && mhi.n() > 1) {
+            Some(m) => mn.blend_learned_with(mhi, m, target, &inc.images)?,
+            None => mn.blend_consistent(mhi, target, &inc.images, self.beta)?,
+        };
+        let stats = mn.stats;
+        Ok(View {
+            image: b.image,
+            multi_normal: mn.images,
+            weights: b.weights,
+            stats,
+            render_ms: mn.render_ms,
+            blend_ms: b.blend_ms + inc_ms,
+        })
+    }
+}
+
+impl MultiNormal {
+    /// Blend the images for `target` by `model`'s blending network, one that reads each
+    /// normal's photo-inconsistency (`inconsistency`, [`inconsistency`] for the same view).
+    ///
+    /// # Errors
+    /// If the images do not match or the network fails.
+    pub fn blend_learned_with(
+        &self,
+        mhi: &Mhi,
+        model: &Model,
+        target: &Camera,
+        inconsistency: &[Rgb32FImage],
+    ) -> crate::Result<Blended> {
+        let t0 = Instant::now();
+        let soft =
+            heuristic_weights_for(mhi.normals(), mhi.reference(), target, BlendHeuristic::Soft);
+        let weights = model.blend_weights(&self.images, &soft, Some(inconsistency))?;
+        let image = combine(&self.images, &weights);
+        Ok(Blended {
+            image,
+            weights,
+            blend_ms: ms(t0),
+        })
+    }
+
+    /// Blend the images for `target` by Soft weights leaning towards the normals whose geometry
+    /// both photos agree with: `soft_k · exp(−β · c_k)`, with `c_k` the mean over RGB of
+    /// `inconsistency[k]` ([`inconsistency`] for the same view); see
+    /// [`mhi_render::consistent_weights`]. Needs no training.
+    ///
+    /// # Errors
+    /// If β is negative or not finite, or the images do not match.
+    pub fn blend_consistent(
+        &self,
+        mhi: &Mhi,
+        target: &Camera,
+        inconsistency: &[Rgb32FImage],
+        beta: f32,
+    ) -> crate::Result<Blended> {
+        let t0 = Instant::now();
+        let soft =
+            heuristic_weights_for(mhi.normals(), mhi.reference(), target, BlendHeuristic::Soft);
+        let weights = consistent_weights(&soft, inconsistency, beta)?;
         let image = combine(&self.images, &weights);
         Ok(Blended {
             image,

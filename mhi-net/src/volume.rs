@@ -331,6 +331,18 @@ impl SourceColour {
         (reference, delta)
     }
 
+    /// Every plane's photo-inconsistency, `|src_l − ref|` where the source sees plane `l` and 0
+    /// elsewhere (the layer colours of `mhi_render::inconsistency_mhi`), as a tensor.
+    ///
+    /// # Shapes
+    /// `[N·D, 3, H, W]`
+    pub fn inconsistency(&self, device: &Device) -> Tensor<4> {
+        let (planes, h, w) = self.shape;
+        let (_, delta) = self.planar();
+        let abs: Vec<f32> = delta.into_iter().map(f32::abs).collect();
+        Tensor::from_data(TensorData::new(abs, [planes, 3, h, w]), device)
+    }
+
     /// Every plane's colour for the head's logits `m` (differentiable in `m`).
     ///
     /// # Shapes

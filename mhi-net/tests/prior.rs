@@ -62,7 +62,7 @@ fn an_untrained_model_on_the_sweep_prior_renders_the_sweep_with_soft() {
         )
         .unwrap();
         let mni = render(&mhi, &tf.camera, &options(Blend::Weights(&soft))).unwrap();
-        let learned = model.blend_weights(&mni.multi_normal, &soft).unwrap();
+        let learned = model.blend_weights(&mni.multi_normal, &soft, None).unwrap();
         let dw = learned
             .iter()
             .zip(&soft)

@@ -146,6 +146,16 @@ pub struct TrainArgs {
     /// distance from their mean, per pixel (N more input channels).
     #[arg(long)]
     pub blend_disagreement: bool,
+    /// The blending network also reads each normal's photo-inconsistency (N more input
+    /// channels) and corrects the consistent blend instead of Soft: untrained, it blends as
+    /// `render --blend consistent` does.
+    #[arg(long)]
+    pub blend_consistency: bool,
+    /// Start stage 1 from the latest checkpoint of this trained run (same stage-1 network,
+    /// planes, depth range and prior); with `--phase1-steps 0` only the blending network
+    /// trains.
+    #[arg(long)]
+    pub stage1_from: Option<PathBuf>,
     /// Give every normal its own stage-1 network instead of sharing one.
     #[arg(long)]
     pub separate_weights: bool,

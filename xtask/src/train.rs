@@ -75,6 +75,14 @@ fn new_config(a: &TrainArgs, sources: Vec<DataSource>) -> anyhow::Result<TrainCo
     c.stage1.scale = a.stage1_scale as usize;
     c.blend.width = a.blend_width;
     c.blend.disagreement = a.blend_disagreement;
+    if a.blend_consistency {
+        if a.normals < 2 {
+            bail!(
+                "--blend-consistency weighs normals against each other: it needs --normals 2 or more"
+            );
+        }
+        c.blend.consistency = Some(mhi_net::CONSISTENCY_BETA);
+    }
     c.width = a.size.0;
     c.height = a.size.1;
     c.planes = a.planes;
@@ -310,8 +318,11 @@ pub fn train(a: &TrainArgs) -> anyhow::Result<()> {
         }
         let c = new_config(a, sources)?;
         let loss = train_loss(a, &weights, &device)?;
-        Trainer::new(c, &a.run, &a.data[0], loss, device)
-            .with_context(|| format!("starting a training run in --run {}", a.run.display()))?
+        match &a.stage1_from {
+            Some(from) => Trainer::new_on_stage1(c, &a.run, &a.data[0], loss, device, from),
+            None => Trainer::new(c, &a.run, &a.data[0], loss, device),
+        }
+        .with_context(|| format!("starting a training run in --run {}", a.run.display()))?
     };
     let cfg = trainer.config().clone();
     let lpips = mhi_net::backbone::Backbone::load(

@@ -3,24 +3,26 @@
 one report cannot hold together (two runs with the same method, N and D share a row):
 
     python3 xtask/scripts/paired_runs.py A/report.json B/report.json [--method mpi] [--baseline sweep]
-        [--metric psnr_covered]
+        [--metric psnr_covered] [--bin 4-8]
 
 Prints, with 95 % percentile bootstrap intervals over triplets (2000 resamples, seed 0):
 METHOD − BASELINE within A, the same within B, and METHOD of A − METHOD of B, paired per triplet,
 of METRIC (a per-view score of report.json's measurements: psnr_covered, the default,
-lpips_covered, ssim_covered, psnr, ...; for LPIPS lower is better).
+lpips_covered, ssim_covered, psnr, ...; for LPIPS lower is better), over the triplets of one
+rotation bin with --bin (0-2, 2-4, 4-8 or >8; all by default).
 """
 import json
 import random
 import sys
 
 
-def by_triplet(path, method, metric="psnr_covered"):
+def by_triplet(path, method, metric="psnr_covered", rotation_bin=None):
     """METHOD's METRIC per triplet; a report holding METHOD at several N x D (a
     `--sweep-grid` with more than one entry) is refused rather than mixed."""
     out, configs = {}, set()
     for m in json.load(open(path))["measurements"]:
-        if m["method"] == method and m.get(metric) is not None:
+        if (m["method"] == method and m.get(metric) is not None
+                and rotation_bin in (None, m.get("bin"))):
             configs.add((m.get("normals"), m.get("planes")))
             out[m["triplet"]] = m[metric]
     if len(configs) > 1:
@@ -57,13 +59,14 @@ def options(args, defaults):
 
 def main():
     args = sys.argv[1:]
-    opt = options(args, {"--method": "mpi", "--baseline": "sweep", "--metric": "psnr_covered"})
+    opt = options(args, {"--method": "mpi", "--baseline": "sweep", "--metric": "psnr_covered",
+                         "--bin": None})
     if len(args) != 2:
         sys.exit(__doc__)
     a, b = args
     m, base, k = opt["--method"], opt["--baseline"], opt["--metric"]
-    of = lambda path, method: by_triplet(path, method, k)
-    print(f"{k}:")
+    of = lambda path, method: by_triplet(path, method, k, opt["--bin"])
+    print(f"{k}:" if opt["--bin"] is None else f"{k}, rotation bin {opt['--bin']}:")
     print(f"A {m} - {base}: {ci(paired(of(a, m), of(a, base)))}")
     print(f"B {m} - {base}: {ci(paired(of(b, m), of(b, base)))}")
     print(f"A {m} - B {m}: {ci(paired(of(a, m), of(b, m)))}")

@@ -53,13 +53,14 @@ pub struct RenderArgs {
     /// --far) instead of a trained model.
     #[arg(long)]
     pub sweep: bool,
-    /// How a trained model's multi-normal images are blended: `soft` (the paper's heuristic of
-    /// the angle between each normal and the pixel's ray; it also lets the render leave out
-    /// normals a view does not need) or `learned` (the model's blending network). Soft is the
-    /// default because the pretrained model's network does not beat it on validation data
-    /// (models/mhi-n5d16-colour-w16/MODEL.md) and costs ~8 % more per view.
-    #[arg(long, value_enum, default_value_t = BlendArg::Soft)]
-    pub blend: BlendArg,
+    /// How the multi-normal images are blended: `consistent` (Soft weights leaning towards the
+    /// normals whose geometry both photos agree with; no training), `soft` (the paper's
+    /// heuristic of the angle between each normal and the pixel's ray; it also lets the render
+    /// leave out normals a view does not need) or `learned` (a trained model's blending
+    /// network). Default: `consistent` with a trained model, which beats Soft and the network
+    /// on validation data (models/mhi-n5d16-colour-w16/MODEL.md); `soft` with --sweep.
+    #[arg(long, value_enum)]
+    pub blend: Option<BlendArg>,
     /// Working size WIDTHxHEIGHT (photos are resized, intrinsics follow). A trained model needs
     /// each side a multiple of its U-Nets' multiple (8 for the pretrained model; the error names
     /// it). Default: the reference photo's aspect with its longer side 256, rounded to that
@@ -114,6 +115,49 @@ pub enum BlendArg {
     Soft,
     /// The trained model's blending network.
     Learned,
+    /// Soft weights scaled by each normal's photo-consistency (`mhi_net::Consistency`).
+    Consistent,
+}
+
+impl RenderArgs {
+    /// The blend asked for, or the default for the MHI's source (a trained model or --sweep).
+    fn blend_for(&self, trained: bool) -> BlendArg {
+        self.blend.unwrap_or(if trained {
+            BlendArg::Consistent
+        } else {
+            BlendArg::Soft
+        })
+    }
+}
+
+/// How `render` blends each view: by a heuristic or a model's network
+/// ([`mhi_eval::images::view`]), or consistently.
+#[derive(Clone, Copy)]
+enum Blender<'a> {
+    Model(Option<&'a Model>),
+    Consistent(&'a mhi_net::Consistency),
+}
+
+impl Blender<'_> {
+    /// Whether the blend needs every multi-normal image (so the plan leaves no normal out).
+    fn needs_every_normal(&self) -> bool {
+        !matches!(self, Blender::Model(None))
+    }
+
+    fn view(
+        &self,
+        mhi: &mhi_render::Mhi,
+        cam: &Camera,
+        prune: Prune,
+    ) -> anyhow::Result<(image::Rgb32FImage, mhi_render::RenderStats)> {
+        match self {
+            Blender::Model(m) => view(mhi, *m, cam, prune),
+            Blender::Consistent(c) => {
+                let v = c.render(mhi, cam, prune)?;
+                Ok((v.image, v.stats))
+            }
+        }
+    }
 }
 
 /// `cargo xtask render`.
@@ -142,7 +186,7 @@ fn check_args(a: &RenderArgs, file: &CameraFile, views_too: bool) -> anyhow::Res
         }
     }
     a.path.check()?;
-    if a.sweep && a.blend == BlendArg::Learned {
+    if a.sweep && a.blend == Some(BlendArg::Learned) {
         bail!("--blend learned needs a trained model: the sweep (--sweep) has no blending network");
     }
     if !(a.fps.is_finite() && a.fps > 0.0 && a.fps <= 240.0) {
@@ -292,15 +336,15 @@ fn listed_cameras<'a>(
 fn plan_views(
     a: &RenderArgs,
     mhi: &mhi_render::Mhi,
-    learned_blend: bool,
+    blender: Blender<'_>,
     reference: &Camera,
     cams: impl Iterator<Item = anyhow::Result<Camera>>,
     count: usize,
     prune: Prune,
 ) -> anyhow::Result<(mhi_render::plan::ScenePlan, Vec<u8>)> {
-    // What the views need: Soft weights for the sweep; a learned blend comes after the
+    // What the views need: Soft weights for Soft; a learned or consistent blend comes after the
     // multi-normal images, so no normal is left out for it (Avg weights say so).
-    let heuristic = if learned_blend && mhi.n() > 1 {
+    let heuristic = if blender.needs_every_normal() && mhi.n() > 1 {
         BlendHeuristic::Avg
     } else {
         BlendHeuristic::Soft
@@ -319,7 +363,11 @@ fn plan_views(
     let plan = seen.finish(mhi)?;
     let plan_json = serde_json::to_vec_pretty(&serde_json::json!({
         "exact": a.exact,
-        "blend": if heuristic == BlendHeuristic::Avg { "learned (no normal left out: its weights come after the multi-normal images)" } else { "Soft" },
+        "blend": match (blender, heuristic) {
+            (_, BlendHeuristic::Soft) => "Soft",
+            (Blender::Consistent(_), _) => "consistent (no normal left out: its weights come after the multi-normal images)",
+            _ => "learned (no normal left out: its weights come after the multi-normal images)",
+        },
         "plan": plan,
     }))?;
     if a.explain {
@@ -396,7 +444,7 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
         println!("note: {n}");
     }
     let learned = load_model(a)?;
-    if learned.is_none() && a.blend == BlendArg::Learned {
+    if learned.is_none() && a.blend == Some(BlendArg::Learned) {
         bail!(
             "--blend learned needs a trained model (--run, or the pretrained model in models/); the sweep has no blending network"
         );
@@ -430,11 +478,18 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
         Prune::with_budget(a.budget / 255.0)
     };
     // The model blends only with --blend learned; its stage 1 made the MHI either way.
-    let blender = model.filter(|_| a.blend == BlendArg::Learned);
+    let blend = a.blend_for(model.is_some());
+    let consistency = (blend == BlendArg::Consistent && mhi.n() > 1)
+        .then(|| mhi_net::Consistency::new(&mhi, &rf, &sf, mhi_net::CONSISTENCY_BETA))
+        .transpose()?;
+    let blender = match &consistency {
+        Some(c) => Blender::Consistent(c),
+        None => Blender::Model(model.filter(|_| blend == BlendArg::Learned)),
+    };
     let (plan, plan_json) = plan_views(
         a,
         &mhi,
-        blender.is_some(),
+        blender,
         &rf.camera,
         listed()
             .map(|r| r.map(|(_, c)| c))
@@ -449,7 +504,7 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
         let pb = crate::progress::bar(listed_count as u64, "views");
         for r in listed() {
             let (row, cam) = r?;
-            let (img, stats) = view(&mhi, blender, &cam, prune)?;
+            let (img, stats) = blender.view(&mhi, &cam, prune)?;
             worst_bound = worst_bound.max(stats.bound);
             let path = out.path().join(format!("view_row{row:03}.png"));
             mhi_data::write_png(&path, &mhi_data::to_u8(&clipped(&img)))?;
@@ -620,7 +675,7 @@ fn check_video_file(file: &Path, out: &Path, overwrite: bool) -> anyhow::Result<
 fn path_video(
     a: &RenderArgs,
     mhi: &mhi_render::Mhi,
-    model: Option<&Model>,
+    blender: Blender<'_>,
     cams: &[Camera],
     prune: Prune,
     dir: &Path,
@@ -632,7 +687,7 @@ fn path_video(
     let pb = crate::progress::bar(cams.len() as u64, "video");
     for cam in cams {
         let t0 = Instant::now();
-        let (img, stats) = view(mhi, model, cam, prune)?;
+        let (img, stats) = blender.view(mhi, cam, prune)?;
         let rgb = mhi_data::to_u8(&clipped(&img));
         t_render += t0.elapsed().as_secs_f64();
         bound = bound.max(stats.bound);

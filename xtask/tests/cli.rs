@@ -583,7 +583,14 @@ fn eval_writes_a_complete_report_and_keeps_an_existing_one() {
     let methods: std::collections::BTreeSet<&str> =
         rows.iter().map(|r| r["method"].as_str().unwrap()).collect();
     for m in [
-        "learned", "soft", "hard", "avg", "sweep", "oracle", "nearest",
+        "learned",
+        "soft",
+        "hard",
+        "avg",
+        "consistent",
+        "sweep",
+        "oracle",
+        "nearest",
     ] {
         assert!(methods.contains(m), "{m} missing from {methods:?}");
     }
@@ -918,6 +925,10 @@ fn eval_refuses_unknown_methods_tiny_sizes_and_stale_or_degenerate_indices() {
             err.contains("--also-budgets") && err.contains(why),
             "{bad}: {err}"
         );
+    }
+    for bad in ["-1", "nan", "inf"] {
+        let err = fails(&refs(&base(&["--consistency-beta", bad])));
+        assert!(err.contains("--consistency-beta"), "{bad}: {err}");
     }
     assert!(!out.exists(), "a refused eval leaves no output folder");
     // An index with a degenerate triplet, then one whose frames changed.
@@ -1562,11 +1573,12 @@ fn eval_with_estimated_poses_records_each_triplets_pose_error() {
     assert!(v["meta"].get("pose_errors").is_none(), "{}", v["meta"]);
 }
 
-/// `render --blend`: a trained run's views are blended with Soft by default and with its
-/// network on `--blend learned` (plan.json says which); the network cannot be asked of the
-/// sweep, and the refusal writes nothing.
+/// `render --blend`: a trained run's views are blended consistently by default, with Soft on
+/// `--blend soft` and with its network on `--blend learned` (plan.json says which); the sweep
+/// blends with Soft by default, the network cannot be asked of it, and the refusal writes
+/// nothing.
 #[test]
-fn render_blends_with_soft_by_default_and_with_the_network_on_request() {
+fn render_blends_consistently_by_default_and_otherwise_on_request() {
     let d = tempfile::tempdir().unwrap();
     let root = dataset(d.path());
     let run = d.path().join("run");
@@ -1607,11 +1619,28 @@ fn render_blends_with_soft_by_default_and_with_the_network_on_request() {
             serde_json::from_str(&std::fs::read_to_string(out.join("plan.json")).unwrap()).unwrap();
         plan["blend"].as_str().unwrap().to_string()
     };
+    let default = d.path().join("default");
+    let v = render(&default, &["--run", r]);
+    let o = xtask(&v.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        blend_of(&default).starts_with("consistent"),
+        "{}",
+        blend_of(&default)
+    );
     let soft = d.path().join("soft");
-    let v = render(&soft, &["--run", r]);
+    let v = render(&soft, &["--run", r, "--blend", "soft"]);
     let o = xtask(&v.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(blend_of(&soft), "Soft");
+    // Soft and consistent blends of the same MHI differ, so the default did blend otherwise.
+    let png = |dir: &Path| std::fs::read(dir.join("view_row002.png")).unwrap();
+    assert_ne!(png(&default), png(&soft));
+    let sweep_soft = d.path().join("sweep-soft");
+    let v = render(&sweep_soft, &["--sweep", "--planes", "4"]);
+    let o = xtask(&v.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(blend_of(&sweep_soft), "Soft");
     let learned = d.path().join("learned");
     let v = render(&learned, &["--run", r, "--blend", "learned"]);
     let o = xtask(&v.iter().map(String::as_str).collect::<Vec<_>>());

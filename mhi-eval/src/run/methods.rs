@@ -77,7 +77,11 @@ impl Ctx<'_> {
             (Method::Hard, "hard", BlendHeuristic::Hard),
             (Method::Avg, "avg", BlendHeuristic::Avg),
         ];
-        if !is_mpi && !self.wants(Method::Learned) && !heuristics.iter().any(|h| self.wants(h.0)) {
+        if !is_mpi
+            && !self.wants(Method::Learned)
+            && !self.wants(Method::Consistent)
+            && !heuristics.iter().any(|h| self.wants(h.0))
+        {
             return Ok(());
         }
         let d = model.depths().len();
@@ -106,7 +110,12 @@ impl Ctx<'_> {
             });
             Ok(())
         };
-        let from_images = [Method::Learned, Method::Hard, Method::Avg];
+        let from_images = [
+            Method::Learned,
+            Method::Hard,
+            Method::Avg,
+            Method::Consistent,
+        ];
         if !is_mpi && !from_images.iter().any(|m| self.wants(*m)) {
             soft(out)?;
             return Ok(());
@@ -130,9 +139,31 @@ impl Ctx<'_> {
             return Ok(());
         }
         let blend = |choice| mn.blend(&mhi, Some(model), &tf.camera, choice);
+        // Each normal's photo-inconsistency, for the consistent blend and for a blending
+        // network that reads it (timed as part of each blend).
+        let reads_inc = self.wants(Method::Learned) && model.blend_consistency().is_some();
+        let inc = (self.wants(Method::Consistent) || reads_inc)
+            .then(|| -> anyhow::Result<_> {
+                let t0 = Instant::now();
+                let inc = mhi_net::inconsistency(&mhi, rf, sf, &tf.camera)?;
+                Ok((inc, t0.elapsed().as_secs_f64() * 1e3))
+            })
+            .transpose()?;
         if self.wants(Method::Learned) {
-            let b = blend(BlendChoice::Learned)?;
+            let b = match &inc {
+                Some((images, c_ms)) if reads_inc => {
+                    let mut b = mn.blend_learned_with(&mhi, model, &tf.camera, images)?;
+                    b.blend_ms += c_ms;
+                    b
+                }
+                _ => blend(BlendChoice::Learned)?,
+            };
             out.push(blended("learned", n, d, b, base));
+        }
+        if let (true, Some((images, c_ms))) = (self.wants(Method::Consistent), &inc) {
+            let mut b = mn.blend_consistent(&mhi, &tf.camera, images, a.consistency_beta)?;
+            b.blend_ms += c_ms;
+            out.push(blended("consistent", n, d, b, base));
         }
         for (which, name, h) in heuristics {
             if !self.wants(which) {

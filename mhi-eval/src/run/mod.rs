@@ -588,6 +588,12 @@ fn check_options(a: &EvalArgs) -> anyhow::Result<()> {
     {
         bail!("--size {w}x{h} is too small: LPIPS and SSIM need at least 32 pixels a side");
     }
+    if !(a.consistency_beta.is_finite() && a.consistency_beta >= 0.0) {
+        bail!(
+            "--consistency-beta {}: the consistent blend's strength must be a finite number of at least 0 (0 is Soft)",
+            a.consistency_beta
+        );
+    }
     Ok(())
 }
 
@@ -635,9 +641,15 @@ fn load_models(a: &EvalArgs, cpu: &Device) -> anyhow::Result<Vec<Loaded>> {
     let mut models = Vec::new();
     let mut runs = a.runs.clone();
     if runs.is_empty() && !a.no_pretrained {
-        let needs_run = [Method::Learned, Method::Soft, Method::Hard, Method::Avg]
-            .iter()
-            .any(|m| a.methods.contains(m));
+        let needs_run = [
+            Method::Learned,
+            Method::Soft,
+            Method::Hard,
+            Method::Avg,
+            Method::Consistent,
+        ]
+        .iter()
+        .any(|m| a.methods.contains(m));
         if let Some(p) = mhi_net::pretrained::pretrained().filter(|_| needs_run) {
             println!(
                 "using the pretrained model {} (--run chooses another, --no-pretrained none)",
@@ -892,8 +904,9 @@ fn size_label(sizes: &[(u32, u32)]) -> String {
         .join(", ")
 }
 
-/// The comparisons the report draws, among the configurations present: learned against Soft on
-/// its own stage 1, against the sweep and against the MPI; the learned MPI against the sweep;
+/// The comparisons the report draws, among the configurations present: learned and consistent
+/// each against Soft on their own stage 1, against the sweep and against the MPI, and learned
+/// against consistent; the learned MPI against the sweep;
 /// MHI against MPI (N > 1 against N = 1 at the same D) for the sweep and the oracle; the largest
 /// sweep against the nearest view. A learned model meets the sweep of its N and D, or else the
 /// sweep of its N with the most planes.
@@ -912,13 +925,16 @@ fn comparison_pairs(cfgs: &[Config]) -> Vec<(Config, Config)> {
         let any = sweeps.iter().filter(|s| s.1 == l.1).max_by_key(|s| s.2);
         same.or(any).cloned()
     };
-    for l in of("learned") {
+    for l in of("learned").into_iter().chain(of("consistent")) {
         push(l.clone(), ("soft".into(), l.1, l.2));
         if let Some(s) = sweep_for(&l) {
             push(l.clone(), s);
         }
         for m in of("mpi") {
             push(l.clone(), m);
+        }
+        if l.0 == "learned" {
+            push(l.clone(), ("consistent".into(), l.1, l.2));
         }
     }
     for m in of("mpi") {
@@ -1050,8 +1066,8 @@ fn markdown(
     );
     let _ = writeln!(
         s,
-        "Methods: `learned` = stage 1 + learned blending network; `soft`/`hard`/`avg` = the same stage 1 with the paper's heuristic blends; `mpi` = a run trained with N = 1 (the MPI baseline, same code); `sweep` = training-free plane-sweep MHI (photo-consistency, no network); `oracle` = MHI built from the scene's exact geometry with Soft blending (synthetic only; its time is render + blend only); `nearest` = the input view nearest the target, shown as it is. Scores are computed on images clipped to [0, 1]. Times are wall-clock on this machine, one view at a time, {}.\n",
-        meta.timing
+        "Methods: `learned` = stage 1 + learned blending network; `soft`/`hard`/`avg` = the same stage 1 with the paper's heuristic blends; `consistent` = the same stage 1, Soft weights leaning towards the normals both photos agree with (β {}); `mpi` = a run trained with N = 1 (the MPI baseline, same code); `sweep` = training-free plane-sweep MHI (photo-consistency, no network); `oracle` = MHI built from the scene's exact geometry with Soft blending (synthetic only; its time is render + blend only); `nearest` = the input view nearest the target, shown as it is. Scores are computed on images clipped to [0, 1]. Times are wall-clock on this machine, one view at a time, {}.\n",
+        a.consistency_beta, meta.timing
     );
     for (m, r) in models.iter().zip(&meta.runs) {
         let c = m.model.config();
@@ -1221,5 +1237,16 @@ mod tests {
         assert!(p.contains(&(c("sweep", 5, 32), c("sweep", 1, 32))));
         assert!(p.contains(&(c("sweep", 5, 32), c("nearest", 0, 0))));
         assert!(p.iter().all(|(a, b)| cfgs.contains(a) && cfgs.contains(b)));
+        assert!(
+            !p.iter()
+                .any(|(a, b)| a.0 == "consistent" || b.0 == "consistent")
+        );
+        let mut with = cfgs.clone();
+        with.push(c("consistent", 5, 8));
+        let p = comparison_pairs(&with);
+        for other in [c("soft", 5, 8), c("sweep", 5, 32), c("mpi", 1, 8)] {
+            assert!(p.contains(&(c("consistent", 5, 8), other)));
+        }
+        assert!(p.contains(&(c("learned", 5, 8), c("consistent", 5, 8))));
     }
 }

@@ -18,6 +18,9 @@ pub enum Method {
     Hard,
     /// The same stage 1, Avg blending.
     Avg,
+    /// The same stage 1, Soft weights leaning towards the normals whose geometry both photos
+    /// agree with (`--consistency-beta`; needs no training).
+    Consistent,
     /// A trained run with N = 1 (the MPI baseline).
     Mpi,
     /// The training-free plane-sweep MHI at each --sweep-grid configuration.
@@ -71,9 +74,15 @@ pub struct EvalArgs {
         long,
         value_enum,
         value_delimiter = ',',
-        default_value = "learned,soft,hard,avg,mpi,sweep,oracle,nearest"
+        default_value = "learned,soft,hard,avg,consistent,mpi,sweep,oracle,nearest"
     )]
     pub methods: Vec<Method>,
+    /// Strength β of the `consistent` blend: each normal's Soft weight is scaled by
+    /// `exp(−β · c)`, with `c` the mean colour difference (0 to 1) between the source photo
+    /// warped by that normal's layers and the reference photo, along the pixel's ray. 0 is
+    /// Soft.
+    #[arg(long, default_value_t = mhi_net::CONSISTENCY_BETA, allow_hyphen_values = true)]
+    pub consistency_beta: f32,
     /// (N, D) configurations of the training-free sweep, as NxD (N in 1, 2, 3, 5).
     #[arg(
         long,

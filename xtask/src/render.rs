@@ -135,7 +135,8 @@ impl RenderArgs {
 #[derive(Clone, Copy)]
 enum Blender<'a> {
     Model(Option<&'a Model>),
-    Consistent(&'a mhi_net::Consistency),
+    /// The consistent blend, or a model's network that reads the same inconsistency images.
+    Consistent(&'a mhi_net::Consistency, Option<&'a Model>),
 }
 
 impl Blender<'_> {
@@ -152,8 +153,8 @@ impl Blender<'_> {
     ) -> anyhow::Result<(image::Rgb32FImage, mhi_render::RenderStats)> {
         match self {
             Blender::Model(m) => view(mhi, *m, cam, prune),
-            Blender::Consistent(c) => {
-                let v = c.render(mhi, cam, prune)?;
+            Blender::Consistent(c, m) => {
+                let v = c.render_with(mhi, *m, cam, prune)?;
                 Ok((v.image, v.stats))
             }
         }
@@ -365,7 +366,7 @@ fn plan_views(
         "exact": a.exact,
         "blend": match (blender, heuristic) {
             (_, BlendHeuristic::Soft) => "Soft",
-            (Blender::Consistent(_), _) => "consistent (no normal left out: its weights come after the multi-normal images)",
+            (Blender::Consistent(_, None), _) => "consistent (no normal left out: its weights come after the multi-normal images)",
             _ => "learned (no normal left out: its weights come after the multi-normal images)",
         },
         "plan": plan,
@@ -479,12 +480,18 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
     };
     // The model blends only with --blend learned; its stage 1 made the MHI either way.
     let blend = a.blend_for(model.is_some());
-    let consistency = (blend == BlendArg::Consistent && mhi.n() > 1)
-        .then(|| mhi_net::Consistency::new(&mhi, &rf, &sf, mhi_net::CONSISTENCY_BETA))
+    let network = model.filter(|_| blend == BlendArg::Learned);
+    // A network that reads each normal's photo-inconsistency needs the same images.
+    let reads_inc = network.and_then(Model::blend_consistency);
+    let consistency = ((blend == BlendArg::Consistent || reads_inc.is_some()) && mhi.n() > 1)
+        .then(|| {
+            let beta = reads_inc.unwrap_or(mhi_net::CONSISTENCY_BETA);
+            mhi_net::Consistency::new(&mhi, &rf, &sf, beta)
+        })
         .transpose()?;
     let blender = match &consistency {
-        Some(c) => Blender::Consistent(c),
-        None => Blender::Model(model.filter(|_| blend == BlendArg::Learned)),
+        Some(c) => Blender::Consistent(c, network),
+        None => Blender::Model(network),
     };
     let (plan, plan_json) = plan_views(
         a,

@@ -127,9 +127,21 @@ pub(super) fn write_layers_and_orbit(
         mhi_data::write_png(&dir.join(format!("normal_{i}.png")), &strip(&tiles))?;
     }
     let r = multi_normal(&mhi, &tf.camera, Prune::NONE)?;
-    let weights = r
-        .blend(&mhi, synth.model(), &tf.camera, BlendChoice::Learned)?
-        .weights;
+    // A blending network that reads each normal's photo-inconsistency is given it.
+    let reads_inc = synth
+        .model()
+        .and_then(|m| m.blend_consistency().map(|beta| (m, beta)))
+        .filter(|_| mhi.n() > 1);
+    let weights = match reads_inc {
+        Some((m, _)) => {
+            let inc = mhi_net::inconsistency(&mhi, rf, sf, &tf.camera)?;
+            r.blend_learned_with(&mhi, m, &tf.camera, &inc)?.weights
+        }
+        None => {
+            r.blend(&mhi, synth.model(), &tf.camera, BlendChoice::Learned)?
+                .weights
+        }
+    };
     let (tw, th) = (tf.image.width(), tf.image.height());
     let tpx = (tw * th) as usize;
     let mni: Vec<_> = r
@@ -179,9 +191,15 @@ pub(super) fn write_layers_and_orbit(
             crate::images::median_depth(&mhi),
         )?;
         rotation = Some(mhi_geom::path::PathRange::of(&rf.camera, &cams).max_rotation_deg);
+        let consistency = reads_inc
+            .map(|(_, beta)| mhi_net::Consistency::new(&mhi, rf, sf, beta))
+            .transpose()?;
         let mut frames = Vec::new();
         for c in &cams {
-            let (img, _) = crate::images::view(&mhi, synth.model(), c, a.prune())?;
+            let img = match &consistency {
+                Some(k) => k.render_with(&mhi, synth.model(), c, a.prune())?.image,
+                None => crate::images::view(&mhi, synth.model(), c, a.prune())?.0,
+            };
             frames.push(enlarge(
                 &mhi_data::to_u8(&clipped(&img)),
                 factor_for(img.width(), 256),

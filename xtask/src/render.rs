@@ -58,7 +58,8 @@ pub struct RenderArgs {
     /// heuristic of the angle between each normal and the pixel's ray; it also lets the render
     /// leave out normals a view does not need) or `learned` (a trained model's blending
     /// network). Default: `consistent` with a trained model, which beats Soft and the network
-    /// on validation data (models/mhi-n5d16-colour-w16/MODEL.md); `soft` with --sweep.
+    /// on validation data (models/mhi-n5d16-colour-w16/MODEL.md); `soft` with --sweep and for
+    /// `export` (the viewer blends with Soft).
     #[arg(long, value_enum)]
     pub blend: Option<BlendArg>,
     /// Working size WIDTHxHEIGHT (photos are resized, intrinsics follow). A trained model needs
@@ -479,7 +480,13 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
         Prune::with_budget(a.budget / 255.0)
     };
     // The model blends only with --blend learned; its stage 1 made the MHI either way.
-    let blend = a.blend_for(model.is_some());
+    // Without views (`export`) the default is the viewer's own blend, Soft: the plan may then
+    // leave out the normals its cameras do not need.
+    let blend = if views_too {
+        a.blend_for(model.is_some())
+    } else {
+        a.blend.unwrap_or(BlendArg::Soft)
+    };
     let network = model.filter(|_| blend == BlendArg::Learned);
     // A network that reads each normal's photo-inconsistency needs the same images.
     let reads_inc = network.and_then(Model::blend_consistency);

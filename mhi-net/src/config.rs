@@ -423,18 +423,24 @@ impl TrainConfig {
     /// What stage 1's weights mean: its network, the grid and the prior. Two runs that agree
     /// on it can share a trained stage 1 (`Trainer::new_on_stage1`).
     pub fn stage1_signature(&self) -> String {
-        serde_json::json!([
-            self.stage1,
-            self.planes,
-            self.near,
-            self.far,
-            self.prior,
-            self.prior_window_radius,
-            self.prior_temperature,
-            self.prior_invalid_cost,
-            self.prior_clamp,
-        ])
-        .to_string()
+        let mut v = vec![serde_json::json!(self.stage1)];
+        v.extend(self.grid_and_prior());
+        serde_json::Value::Array(v).to_string()
+    }
+
+    /// The grid and the prior, as the signature and the fingerprint list them.
+    fn grid_and_prior(&self) -> [serde_json::Value; 8] {
+        use serde_json::json;
+        [
+            json!(self.planes),
+            json!(self.near),
+            json!(self.far),
+            json!(self.prior),
+            json!(self.prior_window_radius),
+            json!(self.prior_temperature),
+            json!(self.prior_invalid_cost),
+            json!(self.prior_clamp),
+        ]
     }
 
     /// A fingerprint of everything that shapes the networks or what their weights mean (the
@@ -452,18 +458,9 @@ impl TrainConfig {
                 o.remove("consistency");
             }
         }
-        let v = serde_json::json!([
-            self.stage1,
-            blend,
-            self.planes,
-            self.near,
-            self.far,
-            self.prior,
-            self.prior_window_radius,
-            self.prior_temperature,
-            self.prior_invalid_cost,
-            self.prior_clamp,
-        ]);
+        let mut v = vec![serde_json::json!(self.stage1), blend];
+        v.extend(self.grid_and_prior());
+        let v = serde_json::Value::Array(v);
         // FNV-1a, 64 bits: stable across builds and platforms.
         let hash = v
             .to_string()

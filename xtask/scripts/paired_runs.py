@@ -3,13 +3,15 @@
 one report cannot hold together (two runs with the same method, N and D share a row):
 
     python3 xtask/scripts/paired_runs.py A/report.json B/report.json [--method mpi] [--baseline sweep]
-        [--metric psnr_covered] [--bin 4-8]
+        [--metric psnr_covered] [--bin 4-8] [--b-method soft]
 
 Prints, with 95 % percentile bootstrap intervals over triplets (2000 resamples, seed 0):
 METHOD − BASELINE within A, the same within B, and METHOD of A − METHOD of B, paired per triplet,
 of METRIC (a per-view score of report.json's measurements: psnr_covered, the default,
 lpips_covered, ssim_covered, psnr, ...; for LPIPS lower is better), over the triplets of one
-rotation bin with --bin (0-2, 2-4, 4-8 or >8; all by default).
+rotation bin with --bin (0-2, 2-4, 4-8 or >8; all by default). With --b-method the last line
+compares METHOD of A with that method of B (e.g. one model's consistent blend against another's
+Soft).
 """
 import json
 import random
@@ -60,7 +62,7 @@ def options(args, defaults):
 def main():
     args = sys.argv[1:]
     opt = options(args, {"--method": "mpi", "--baseline": "sweep", "--metric": "psnr_covered",
-                         "--bin": None})
+                         "--bin": None, "--b-method": None})
     if len(args) != 2:
         sys.exit(__doc__)
     a, b = args
@@ -69,7 +71,8 @@ def main():
     print(f"{k}:" if opt["--bin"] is None else f"{k}, rotation bin {opt['--bin']}:")
     print(f"A {m} - {base}: {ci(paired(of(a, m), of(a, base)))}")
     print(f"B {m} - {base}: {ci(paired(of(b, m), of(b, base)))}")
-    print(f"A {m} - B {m}: {ci(paired(of(a, m), of(b, m)))}")
+    mb = opt["--b-method"] or m
+    print(f"A {m} - B {mb}: {ci(paired(of(a, m), of(b, mb)))}")
 
 
 if __name__ == "__main__":

@@ -57,9 +57,9 @@ pub struct RenderArgs {
     /// normals whose geometry both photos agree with; no training), `soft` (the paper's
     /// heuristic of the angle between each normal and the pixel's ray; it also lets the render
     /// leave out normals a view does not need) or `learned` (a trained model's blending
-    /// network). Default: `consistent` with a trained model, which beats Soft and the network
-    /// on validation data (models/mhi-n5d16-colour-w16/MODEL.md); `soft` with --sweep and for
-    /// `export` (the viewer blends with Soft).
+    /// network). Default: `consistent`, which beats Soft and the network on validation data,
+    /// for the trained model and the sweep alike (models/mhi-n5d16-colour-w16/MODEL.md,
+    /// docs/EXPERIMENTS.md); `soft` for `export` (the viewer blends with Soft).
     #[arg(long, value_enum)]
     pub blend: Option<BlendArg>,
     /// Working size WIDTHxHEIGHT (photos are resized, intrinsics follow). A trained model needs
@@ -118,17 +118,6 @@ pub enum BlendArg {
     Learned,
     /// Soft weights scaled by each normal's photo-consistency (`mhi_net::Consistency`).
     Consistent,
-}
-
-impl RenderArgs {
-    /// The blend asked for, or the default for the MHI's source (a trained model or --sweep).
-    fn blend_for(&self, trained: bool) -> BlendArg {
-        self.blend.unwrap_or(if trained {
-            BlendArg::Consistent
-        } else {
-            BlendArg::Soft
-        })
-    }
 }
 
 /// How `render` blends each view: by a heuristic or a model's network
@@ -482,11 +471,11 @@ fn run(a: &RenderArgs, export: Option<&Path>, views_too: bool) -> anyhow::Result
     // The model blends only with --blend learned; its stage 1 made the MHI either way.
     // Without views (`export`) the default is the viewer's own blend, Soft: the plan may then
     // leave out the normals its cameras do not need.
-    let blend = if views_too {
-        a.blend_for(model.is_some())
+    let blend = a.blend.unwrap_or(if views_too {
+        BlendArg::Consistent
     } else {
-        a.blend.unwrap_or(BlendArg::Soft)
-    };
+        BlendArg::Soft
+    });
     let network = model.filter(|_| blend == BlendArg::Learned);
     // A network that reads each normal's photo-inconsistency needs the same images.
     let reads_inc = network.and_then(Model::blend_consistency);

@@ -49,8 +49,8 @@ pub struct RenderArgs {
     /// pretrained model in `models/` (see its MODEL.md), or the sweep when there is none.
     #[arg(long, conflicts_with = "sweep")]
     pub run: Option<PathBuf>,
-    /// Use the training-free plane-sweep MHI with Soft blending (--normals, --planes, --near,
-    /// --far) instead of a trained model.
+    /// Use the training-free plane-sweep MHI (--normals, --planes, --near, --far) instead of a
+    /// trained model.
     #[arg(long)]
     pub sweep: bool,
     /// How the multi-normal images are blended: `consistent` (Soft weights leaning towards the

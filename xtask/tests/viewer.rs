@@ -101,7 +101,16 @@ fn the_browser_viewer_agrees_with_the_cpu_renderer() {
     xtask(&args);
     let mut args = vec!["render"];
     args.extend(common.iter().copied());
-    args.extend(["--exact", "--frames", "0", "--out", cpu.to_str().unwrap()]);
+    // The viewer blends with Soft; `render` would blend consistently by default.
+    args.extend([
+        "--exact",
+        "--blend",
+        "soft",
+        "--frames",
+        "0",
+        "--out",
+        cpu.to_str().unwrap(),
+    ]);
     xtask(&args);
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(viewer.join("manifest.json")).unwrap())

@@ -277,12 +277,9 @@ impl TrainConfig {
     pub(crate) fn validate(&self) -> crate::Result<()> {
         self.check_sizes()?;
         self.normal_set()?;
-        if let Some(beta) = self.blend.consistency
-            && !(beta.is_finite() && beta >= 0.0)
-        {
-            return Err(Error::Config(format!(
-                "blend.consistency is {beta}: the consistent blend's strength must be finite and at least 0"
-            )));
+        if let Some(beta) = self.blend.consistency {
+            mhi_render::check_beta(beta)
+                .map_err(|e| Error::Config(format!("blend.consistency: {e}")))?;
         }
         let m = self.size_multiple();
         if !(self.width as usize).is_multiple_of(m) || !(self.height as usize).is_multiple_of(m) {

@@ -270,16 +270,8 @@ impl Model {
                         "expected {n} inconsistency images of {w}x{h}"
                     )));
                 }
-                let mut c = Vec::with_capacity(n * w * h);
-                for m in inc {
-                    c.extend(
-                        m.as_raw()
-                            .chunks_exact(3)
-                            .map(|p| (p[0] + p[1] + p[2]) / 3.0),
-                    );
-                }
                 parts.push(Tensor::from_data(
-                    TensorData::new(c, [1, n, h, w]),
+                    TensorData::new(mhi_render::inconsistency_means(inc), [1, n, h, w]),
                     &self.device,
                 ));
             }

@@ -615,12 +615,6 @@ impl BlendNetConfig {
 }
 
 impl BlendNet {
-    /// The β of a network that reads each normal's photo-inconsistency
-    /// ([`BlendNetConfig::consistency`]), `None` for one that does not.
-    pub fn consistency(&self) -> Option<f32> {
-        self.consistency
-    }
-
     /// Blending weights.
     ///
     /// # Shapes

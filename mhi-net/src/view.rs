@@ -370,11 +370,7 @@ impl Consistency {
         source: &LoadedFrame,
         beta: f32,
     ) -> crate::Result<Self> {
-        if !(beta.is_finite() && beta >= 0.0) {
-            return Err(crate::Error::Config(format!(
-                "the consistency strength must be finite and at least 0, got {beta}"
-            )));
-        }
+        mhi_render::check_beta(beta)?;
         Ok(Self {
             inconsistency: inconsistency_mhi(mhi, &reference.image, &source.image, &source.camera)?,
             beta,
@@ -443,15 +439,8 @@ impl MultiNormal {
         target: &Camera,
         inconsistency: &[Rgb32FImage],
     ) -> crate::Result<Blended> {
-        let t0 = Instant::now();
-        let soft =
-            heuristic_weights_for(mhi.normals(), mhi.reference(), target, BlendHeuristic::Soft);
-        let weights = model.blend_weights(&self.images, &soft, Some(inconsistency))?;
-        let image = combine(&self.images, &weights);
-        Ok(Blended {
-            image,
-            weights,
-            blend_ms: ms(t0),
+        self.blend_from_soft(mhi, target, |soft| {
+            model.blend_weights(&self.images, soft, Some(inconsistency))
         })
     }
 
@@ -469,10 +458,22 @@ impl MultiNormal {
         inconsistency: &[Rgb32FImage],
         beta: f32,
     ) -> crate::Result<Blended> {
+        self.blend_from_soft(mhi, target, |soft| {
+            Ok(consistent_weights(soft, inconsistency, beta)?)
+        })
+    }
+
+    /// The images blended by `weights_of(Soft's weights for target)`, timed.
+    fn blend_from_soft(
+        &self,
+        mhi: &Mhi,
+        target: &Camera,
+        weights_of: impl FnOnce(&[f32]) -> crate::Result<Vec<f32>>,
+    ) -> crate::Result<Blended> {
         let t0 = Instant::now();
         let soft =
             heuristic_weights_for(mhi.normals(), mhi.reference(), target, BlendHeuristic::Soft);
-        let weights = consistent_weights(&soft, inconsistency, beta)?;
+        let weights = weights_of(&soft)?;
         let image = combine(&self.images, &weights);
         Ok(Blended {
             image,

@@ -69,6 +69,34 @@ pub fn inconsistency_mhi(
     )
 }
 
+/// Check the consistent blend's strength β: finite and at least 0 (0 gives Soft back).
+///
+/// # Errors
+/// If it is not.
+pub fn check_beta(beta: f32) -> Result<()> {
+    if beta.is_finite() && beta >= 0.0 {
+        Ok(())
+    } else {
+        Err(Error::InvalidInput(format!(
+            "the consistent blend's strength β must be a finite number of at least 0 (0 is Soft), got {beta}"
+        )))
+    }
+}
+
+/// Each normal's inconsistency `c_k`, the mean over RGB of its image (`inconsistency`, the
+/// multi-normal images of [`inconsistency_mhi`]), `N × H × W` normal-major: what
+/// [`consistent_weights`] and a blending network that reads the inconsistency take.
+pub fn inconsistency_means(inconsistency: &[Rgb32FImage]) -> Vec<f32> {
+    inconsistency
+        .iter()
+        .flat_map(|m| {
+            m.as_raw()
+                .chunks_exact(3)
+                .map(|p| (p[0] + p[1] + p[2]) / 3.0)
+        })
+        .collect()
+}
+
 /// Blend weights `N × H × W` (normal-major, summing to 1 per pixel): `soft`'s scaled by
 /// `exp(−β · c_k)`, with `c_k` the mean over RGB of normal `k`'s inconsistency image
 /// (`inconsistency`, one per normal, the multi-normal images of [`inconsistency_mhi`]). β = 0
@@ -82,11 +110,7 @@ pub fn consistent_weights(
     inconsistency: &[Rgb32FImage],
     beta: f32,
 ) -> Result<Vec<f32>> {
-    if !(beta.is_finite() && beta >= 0.0) {
-        return Err(Error::InvalidInput(format!(
-            "the consistency strength β must be finite and ≥ 0, got {beta}"
-        )));
-    }
+    check_beta(beta)?;
     let n = inconsistency.len();
     let Some(first) = inconsistency.first() else {
         return Err(Error::InvalidInput("no inconsistency image".into()));
@@ -100,45 +124,32 @@ pub fn consistent_weights(
             soft.len()
         )));
     }
-    let mut out = soft.to_vec();
-    let rows = h as usize;
-    let w = w as usize;
-    // Row by row in parallel: each row's pixels of every normal.
-    let mut by_row: Vec<Vec<f32>> = (0..rows)
+    let c = inconsistency_means(inconsistency);
+    // Per pixel: the most consistent normal's c, then the scaled weights' sum.
+    let per_pixel =
+        |f: &(dyn Fn(usize, usize) -> f32 + Sync), start: f32, op: fn(f32, f32) -> f32| {
+            (0..px)
+                .into_par_iter()
+                .map(|p| (0..n).fold(start, |acc, k| op(acc, f(k, p))))
+                .collect::<Vec<f32>>()
+        };
+    let lo = per_pixel(&|k, p| c[k * px + p], f32::INFINITY, f32::min);
+    let scaled: Vec<f32> = (0..n * px)
         .into_par_iter()
-        .map(|y| {
-            let mut row = vec![0.0_f32; n * w];
-            let mut c = vec![0.0_f32; n];
-            for x in 0..w {
-                let p = y * w + x;
-                for (k, m) in inconsistency.iter().enumerate() {
-                    let v = &m.as_raw()[3 * p..3 * p + 3];
-                    c[k] = (v[0] + v[1] + v[2]) / 3.0;
-                }
-                let lo = c.iter().copied().fold(f32::INFINITY, f32::min);
-                let mut s = 0.0_f32;
-                for k in 0..n {
-                    let v = soft[k * px + p] * (-beta * (c[k] - lo)).exp();
-                    row[k * w + x] = v;
-                    s += v;
-                }
-                for k in 0..n {
-                    row[k * w + x] = if s > 0.0 && s.is_finite() {
-                        row[k * w + x] / s
-                    } else {
-                        soft[k * px + p]
-                    };
-                }
-            }
-            row
-        })
+        .map(|i| soft[i] * (-beta * (c[i] - lo[i % px])).exp())
         .collect();
-    for (y, row) in by_row.iter_mut().enumerate() {
-        for k in 0..n {
-            out[k * px + y * w..][..w].copy_from_slice(&row[k * w..][..w]);
-        }
-    }
-    Ok(out)
+    let sum = per_pixel(&|k, p| scaled[k * px + p], 0.0, |a, b| a + b);
+    Ok((0..n * px)
+        .into_par_iter()
+        .map(|i| {
+            let s = sum[i % px];
+            if s > 0.0 && s.is_finite() {
+                scaled[i] / s
+            } else {
+                soft[i]
+            }
+        })
+        .collect())
 }
 
 #[cfg(test)]

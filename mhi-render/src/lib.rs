@@ -46,7 +46,7 @@ pub mod reference;
 pub mod stability;
 mod sweep;
 
-pub use consistency::{consistent_weights, inconsistency_mhi};
+pub use consistency::{check_beta, consistent_weights, inconsistency_means, inconsistency_mhi};
 pub use cpu::{
     Blend, Prune, RenderOptions, RenderStats, Rendered, TILE_H, TILE_W, W_EPS, combine,
     heuristic_weights, heuristic_weights_for, needed_share, needed_share_per_normal, render,

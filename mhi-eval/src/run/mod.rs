@@ -588,12 +588,7 @@ fn check_options(a: &EvalArgs) -> anyhow::Result<()> {
     {
         bail!("--size {w}x{h} is too small: LPIPS and SSIM need at least 32 pixels a side");
     }
-    if !(a.consistency_beta.is_finite() && a.consistency_beta >= 0.0) {
-        bail!(
-            "--consistency-beta {}: the consistent blend's strength must be a finite number of at least 0 (0 is Soft)",
-            a.consistency_beta
-        );
-    }
+    mhi_render::check_beta(a.consistency_beta).context("--consistency-beta")?;
     Ok(())
 }
 

@@ -191,7 +191,9 @@ pub fn kernel_paths() -> String {
         "SIMD level {} (CPU: {}; MHI_SIMD caps it): renderer band loop {}, convolution tiles {}",
         l.name(),
         detected().name(),
-        if l >= Level::Avx2 {
+        if mhi_geom::simd::fast_gathers() {
+            "AVX2 + FMA, exact renders' compositing AVX-512F gathers (16 pixels)"
+        } else if l >= Level::Avx2 {
             "AVX2 + FMA"
         } else {
             "baseline"

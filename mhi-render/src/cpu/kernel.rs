@@ -1,5 +1,6 @@
 //! The band loop: per band of rows, per normal, per layer, pass 1 (sample positions) and pass
-//! 2 (bilinear fetch and compositing), compiled baseline and AVX2 + FMA; the hot loop of the
+//! 2 (bilinear fetch and compositing), compiled baseline, AVX2 + FMA and, where gathers are
+//! fast, with pass 2 on AVX-512 vectors of sixteen pixels (`wide.rs`); the hot loop of the
 //! renderer, and [`render`], its entry point.
 
 use image::Rgb32FImage;
@@ -167,7 +168,26 @@ impl RowContext<'_> {
     /// shares its registers with the other's code.
     fn band(&self, y0: usize, out: &mut [f32], mni: &mut [&mut [f32]]) -> usize {
         #[cfg(target_arch = "x86_64")]
-        if self.rows == Rows::Fastest && mhi_geom::simd::level() >= mhi_geom::simd::Level::Avx2 {
+        if self.rows == Rows::Fastest
+            && mhi_geom::simd::fast_gathers()
+            && super::wide::fits(
+                self.mhi.reference().width as usize,
+                self.mhi.reference().height as usize,
+            )
+        {
+            // SAFETY: `band_avx512` needs AVX-512F, AVX2 and FMA, which the CPU was found to
+            // have (the level says so), and an image the gathers can address (`fits`).
+            #[allow(unsafe_code)]
+            return unsafe {
+                if self.eps > 0.0 {
+                    self.band_avx512::<true>(y0, out, mni)
+                } else {
+                    self.band_avx512::<false>(y0, out, mni)
+                }
+            };
+        }
+        #[cfg(target_arch = "x86_64")]
+        if self.rows != Rows::Baseline && mhi_geom::simd::level() >= mhi_geom::simd::Level::Avx2 {
             // SAFETY: `band_avx2` only needs AVX2 and FMA, which the CPU was found to have.
             #[allow(unsafe_code)]
             return unsafe {
@@ -179,10 +199,23 @@ impl RowContext<'_> {
             };
         }
         if self.eps > 0.0 {
-            self.band_generic::<false, true>(y0, out, mni)
+            self.band_generic::<false, true, false>(y0, out, mni)
         } else {
-            self.band_generic::<false, false>(y0, out, mni)
+            self.band_generic::<false, false, false>(y0, out, mni)
         }
+    }
+
+    /// The band with each row's compositing sixteen pixels at a time ([`super::wide`]); the
+    /// rest as the AVX2 + FMA loop, the same bits.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    fn band_avx512<const STOP: bool>(
+        &self,
+        y0: usize,
+        out: &mut [f32],
+        mni: &mut [&mut [f32]],
+    ) -> usize {
+        self.band_generic::<true, STOP, true>(y0, out, mni)
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -193,7 +226,7 @@ impl RowContext<'_> {
         out: &mut [f32],
         mni: &mut [&mut [f32]],
     ) -> usize {
-        self.band_generic::<true, STOP>(y0, out, mni)
+        self.band_generic::<true, STOP, false>(y0, out, mni)
     }
 
     /// Colour of layer `k`, read straight from the images' RGB rows (three floats per texel):
@@ -207,7 +240,7 @@ impl RowContext<'_> {
     }
 
     #[inline(always)]
-    fn band_generic<const FUSED: bool, const STOP: bool>(
+    fn band_generic<const FUSED: bool, const STOP: bool, const WIDE: bool>(
         &self,
         y0: usize,
         out: &mut [f32],
@@ -431,6 +464,41 @@ impl RowContext<'_> {
                         samples += 2 * tw;
                         widen_reads(&mut seen, &idx[x0..x1]);
                         widen_reads(&mut seen, &idx2[x0..x1]);
+                        #[cfg(target_arch = "x86_64")]
+                        if WIDE {
+                            use super::wide::{LayerRow, composite_row};
+                            let layer = |alpha, color, (idx, fx, fy, sx, sy), far| LayerRow {
+                                alpha,
+                                color,
+                                idx,
+                                fx,
+                                fy,
+                                sx,
+                                sy,
+                                far,
+                            };
+                            let layers = [
+                                layer(alpha1, color1, (&idx, &fxs, &fys, &sxs, &sys), false),
+                                layer(alpha2, color2, (&idx2, &fxs2, &fys2, &sxs2, &sys2), far2),
+                            ];
+                            // SAFETY: `WIDE` runs only in `band_avx512`, after the CPU was
+                            // found to have AVX-512F and the image to fit the gathers.
+                            #[allow(unsafe_code)]
+                            unsafe {
+                                composite_row(
+                                    &layers,
+                                    (rw, rh),
+                                    (x0, x1),
+                                    &mut row.t,
+                                    &mut row.c,
+                                    None,
+                                );
+                            }
+                            for n in &mut row.next {
+                                *n += 2;
+                            }
+                            continue;
+                        }
                         let run = x0..x1;
                         let first = idx[run.clone()]
                             .iter()
@@ -509,6 +577,42 @@ impl RowContext<'_> {
                         };
                         // The texels the run reads: where to prefetch the next layer.
                         widen_reads(&mut seen, &idx[x0..x1]);
+                        #[cfg(target_arch = "x86_64")]
+                        if WIDE {
+                            use super::wide::{LayerRow, composite_row};
+                            let layer = LayerRow {
+                                alpha,
+                                color,
+                                idx: &idx,
+                                fx: &fxs,
+                                fy: &fys,
+                                sx: &sxs,
+                                sy: &sys,
+                                far,
+                            };
+                            let thr = stop.then_some(&row.thr[..]);
+                            // SAFETY: as in the pair path above.
+                            #[allow(unsafe_code)]
+                            let done = unsafe {
+                                composite_row(
+                                    &[layer],
+                                    (rw, rh),
+                                    (x0, x1),
+                                    &mut row.t,
+                                    &mut row.c,
+                                    thr,
+                                )
+                            };
+                            samples += done;
+                            for kk in k..k_end {
+                                row.next[kk] += 1;
+                                if stop {
+                                    row.open[kk] = open_span(row.open[kk], &row.t, &row.thr);
+                                }
+                            }
+                            k = k_end;
+                            continue;
+                        }
                         // Pass 2: bilinear fetches and front-to-back compositing. Zipped slices
                         // and one window of alpha and of colour per sample, so that the loop
                         // checks two bounds a sample instead of a dozen.

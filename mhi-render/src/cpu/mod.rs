@@ -12,7 +12,9 @@
 //! rows, four floats a tap into an RGBx row so the mix runs four wide; one alpha and one colour
 //! window a sample, zipped slices, so two bounds checks a sample) and composites; rayon over
 //! bands; the band loop (`RowContext`) is compiled twice, baseline and AVX2 + FMA, the latter
-//! picked at run time, and each specialised on `STOP` (whether the render leaves anything out: the
+//! picked at run time (and where gathers are fast, `mhi_geom::simd::fast_gathers`, a third
+//! time with pass 2 sixteen pixels at a time: `wide.rs`, AVX-512 gathers of tap pairs, the same
+//! bits), and each specialised on `STOP` (whether the render leaves anything out: the
 //! exact loop has no stop tests, the pruned loop no pairs of layers, and an edit to one does not
 //! move the other's code; the next layer's prefetch is a macro because, as a closure, whether it
 //! was inlined changed with unrelated edits and out of line it cost the exact render 11 %); a run
@@ -50,6 +52,8 @@ mod sample;
 #[cfg(test)]
 mod tests;
 mod weights;
+#[cfg(target_arch = "x86_64")]
+mod wide;
 
 pub use kernel::render;
 pub use options::{Blend, Prune, RenderOptions, RenderStats, Rendered, W_EPS};

@@ -99,6 +99,20 @@ fn the_avx2_rows_agree_with_the_baseline_rows() {
             };
             let fast = render_rows_with(&mhi, &target, &opts, Rows::Fastest).unwrap();
             let base = render_rows_with(&mhi, &target, &opts, Rows::Baseline).unwrap();
+            // On a CPU with AVX-512F the exact render composites sixteen pixels at a time:
+            // the same bits as the AVX2 rows.
+            let avx2 = render_rows_with(&mhi, &target, &opts, Rows::Avx2).unwrap();
+            let bits = |r: &Rendered| -> Vec<u32> {
+                std::iter::once(&r.image)
+                    .chain(&r.multi_normal)
+                    .flat_map(|m| m.as_raw().iter().map(|v| v.to_bits()))
+                    .collect()
+            };
+            assert!(
+                bits(&fast) == bits(&avx2),
+                "{prune:?}: widest rows against AVX2 rows"
+            );
+            assert_eq!(fast.stats, avx2.stats);
             // The AVX2 rows fuse the mix's and the compositing's multiply-adds (one
             // rounding each), the baseline rounds twice: the last bits differ, a few
             // units in the last place of colours in [0, 1]. A pruned pixel whose
@@ -167,7 +181,12 @@ fn an_exact_render_is_every_sample_composited_to_the_bit() {
         let fused = mhi_geom::simd::level() >= mhi_geom::simd::Level::Avx2;
         #[cfg(not(target_arch = "x86_64"))]
         let fused = false;
-        for (rows, fused) in [(Rows::Baseline, false), (Rows::Fastest, fused)] {
+        let all = [
+            (Rows::Baseline, false),
+            (Rows::Avx2, fused),
+            (Rows::Fastest, fused),
+        ];
+        for (rows, fused) in all {
             let got = render_rows_with(&mhi, &target, &opts, rows).unwrap();
             assert_eq!(got.stats.samples, 1.0);
             let hs = layer_homographies(&mhi, &target);

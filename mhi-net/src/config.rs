@@ -129,6 +129,13 @@ pub struct TrainConfig {
     /// given; `None` for a run whose stage 1 started untrained.
     #[config(default = "None")]
     pub stage1_from: Option<String>,
+    /// Stage 1 also learns from its multi-normal images blended consistently with this β
+    /// (`render`'s default blend, weights held constant): half its loss is each normal's image
+    /// alone (the paper's), half the blended image, so that each normal may specialise where the
+    /// photos choose it. `None` (every run before this field existed): the per-normal loss
+    /// alone. Needs the colour head's source colours.
+    #[config(default = "None")]
+    pub stage1_consistent_loss: Option<f32>,
 }
 
 impl TrainConfig {
@@ -170,6 +177,7 @@ impl TrainConfig {
                 "prior_invalid_cost",
                 "prior_clamp",
                 "stage1_from",
+                "stage1_consistent_loss",
             ] {
                 o.entry(key).or_insert(serde_json::Value::Null);
             }
@@ -280,6 +288,16 @@ impl TrainConfig {
         if let Some(beta) = self.blend.consistency {
             mhi_render::check_beta(beta)
                 .map_err(|e| Error::Config(format!("blend.consistency: {e}")))?;
+        }
+        if let Some(beta) = self.stage1_consistent_loss {
+            mhi_render::check_beta(beta)
+                .map_err(|e| Error::Config(format!("stage1_consistent_loss: {e}")))?;
+            if self.stage1.normals < 2 {
+                return Err(Error::Config(
+                    "stage1_consistent_loss weighs normals against each other: it needs 2 or more normals"
+                        .into(),
+                ));
+            }
         }
         let m = self.size_multiple();
         if !(self.width as usize).is_multiple_of(m) || !(self.height as usize).is_multiple_of(m) {

@@ -472,9 +472,16 @@ impl Trainer {
         // A blending network that reads each normal's photo-inconsistency gets its layer
         // colours from the stage-1 input (the source warped onto every plane) before stage 1
         // takes it.
-        let inc_colour = (phase == 2)
-            .then(|| self.inconsistency_colour(&input, &device))
-            .flatten();
+        let inc_colour = if phase == 2 {
+            self.inconsistency_colour(&input, &device)
+        } else {
+            // Stage 1 learning from its consistently blended images reads the same colours,
+            // as constants.
+            self.config
+                .stage1_consistent_loss
+                .and(input.colour.as_ref())
+                .map(|c| c.inconsistency(&self.plain()))
+        };
         let layers = if phase == 1 {
             alphas_of(&self.stage1, input)
         } else {
@@ -495,16 +502,26 @@ impl Trainer {
             inc_colour.map(|c| inconsistency_of(layers.alpha.clone(), c.autodiff(), geom, soft));
         let color = layers.colour_or(color);
         let (_, mni) = render_shared(layers.alpha, color, geom, soft.clone());
-        let output = if phase == 1 {
-            mni
+        let (output, blended) = if phase == 1 {
+            let blended = self
+                .config
+                .stage1_consistent_loss
+                .zip(inc)
+                .map(|(beta, inc)| consistent_blend(mni.clone(), soft.clone(), inc, beta));
+            (mni, blended)
         } else {
-            learned_blend(&self.blend, mni.detach(), soft.clone(), inc)
+            let output = learned_blend(&self.blend, mni.detach(), soft.clone(), inc);
+            (output, None)
         };
         times.render_ms = ms(t2);
         let t3 = Instant::now();
-        let loss = self
+        let mut loss = self
             .loss
             .compute(inputs.scored(output.clone()), target.clone())?;
+        if let Some(blended) = blended {
+            let b = self.loss.compute(inputs.scored(blended), target.clone())?;
+            loss = (loss + b).mul_scalar(0.5);
+        }
         times.loss_ms = ms(t3);
         let target = target.clone();
         let t4 = Instant::now();
@@ -607,7 +624,9 @@ impl Trainer {
             self.config.stage1.scale,
             // The plane-sweep volume's colours are kept for a colour head and for a blending
             // network that reads each normal's photo-inconsistency.
-            self.config.stage1.unet.colour_head || self.config.blend.consistency.is_some(),
+            self.config.stage1.unet.colour_head
+                || self.config.blend.consistency.is_some()
+                || self.config.stage1_consistent_loss.is_some(),
             device,
         )
     }
@@ -856,6 +875,21 @@ fn inconsistency_of(
     mni.detach().mean_dim(1).reshape([1, n, h, w])
 }
 
+/// The multi-normal images blended consistently (as `render`'s default blend:
+/// [`mhi_render::consistent_weights`]), the weights held constant: the gradient reaches each
+/// normal's image in proportion to its weight.
+///
+/// # Shapes
+/// `mni`: `[N, 3, H, W]`, `soft`: `[N, 1, H, W]`, `inc`: `[1, N, H, W]` → `[1, 3, H, W]`
+fn consistent_blend(mni: Tensor<4>, soft: Tensor<4>, inc: Tensor<4>, beta: f32) -> Tensor<4> {
+    let [n, _, h, w] = mni.dims();
+    let c = inc.reshape([n, 1, h, w]).detach();
+    let lowest = c.clone().min_dim(0);
+    let scaled = soft.detach() * (c - lowest).mul_scalar(-beta).exp();
+    let weights = scaled.clone() / scaled.sum_dim(0);
+    mhi_render::diff::blend(mni, weights.detach())
+}
+
 /// Stage 2: the blending network's weights applied to the multi-normal images.
 ///
 /// # Shapes
@@ -1053,4 +1087,69 @@ fn psnr_of(output: Tensor<4>, target: Tensor<4>, per_normal: bool, n: usize) -> 
         .sum::<f32>()
         / b as f32;
     Ok(p)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use burn::tensor::TensorData;
+    use image::Rgb32FImage;
+
+    /// What stage 1 learns from with `stage1_consistent_loss` is the image `render` makes by
+    /// default: the multi-normal images blended by [`mhi_render::consistent_weights`].
+    #[test]
+    fn the_training_blend_is_the_render_blend() {
+        let (n, h, w) = (3, 5, 7);
+        let px = h * w;
+        let v = |i: usize, k: usize| ((i * 7919 + k * 104_729) % 1000) as f32 / 999.0;
+        let mut soft: Vec<f32> = (0..n * px).map(|i| 0.1 + v(i, 1)).collect();
+        for p in 0..px {
+            let s: f32 = (0..n).map(|k| soft[k * px + p]).sum();
+            (0..n).for_each(|k| soft[k * px + p] /= s);
+        }
+        let inc: Vec<f32> = (0..n * px).map(|i| 0.3 * v(i, 2)).collect();
+        let mni: Vec<f32> = (0..n * 3 * px).map(|i| v(i, 3)).collect();
+        let device = Device::flex();
+        let t = |data: &[f32], shape: [usize; 4]| {
+            Tensor::<4>::from_data(TensorData::new(data.to_vec(), shape), &device)
+        };
+        let got = consistent_blend(
+            t(&mni, [n, 3, h, w]),
+            t(&soft, [n, 1, h, w]),
+            t(&inc, [1, n, h, w]),
+            20.0,
+        );
+        let got: Vec<f32> = got.into_data().to_vec().unwrap();
+        // The same through the renderer's functions on images (RGB interleaved).
+        let image = |f: &dyn Fn(usize, usize) -> f32| {
+            Rgb32FImage::from_fn(w as u32, h as u32, |x, y| {
+                let p = y as usize * w + x as usize;
+                image::Rgb([f(0, p), f(1, p), f(2, p)])
+            })
+        };
+        let inc_images: Vec<Rgb32FImage> = (0..n).map(|k| image(&|_, p| inc[k * px + p])).collect();
+        let mni_images: Vec<Rgb32FImage> = (0..n)
+            .map(|k| image(&|c, p| mni[(k * 3 + c) * px + p]))
+            .collect();
+        let weights = mhi_render::consistent_weights(&soft, &inc_images, 20.0).unwrap();
+        let want = mhi_render::combine(&mni_images, &weights);
+        let mut worst = 0.0_f32;
+        for p in 0..px {
+            for c in 0..3 {
+                let a = got[c * px + p];
+                let b = want.as_raw()[3 * p + c];
+                worst = worst.max((a - b).abs());
+            }
+        }
+        assert!(worst < 1e-5, "training blend − render blend: {worst}");
+        // And it is not Soft's blend: the inconsistencies moved the weights.
+        let soft_image = mhi_render::combine(&mni_images, &soft);
+        let apart = soft_image
+            .as_raw()
+            .iter()
+            .zip(want.as_raw())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0_f32, f32::max);
+        assert!(apart > 1e-2, "{apart}");
+    }
 }

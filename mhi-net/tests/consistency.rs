@@ -122,3 +122,63 @@ fn a_run_can_start_on_another_runs_stage_1_and_train_only_its_blend() {
     assert!(err.to_string().contains("differs"), "{err}");
     assert!(!d.path().join("other").join("config.json").exists());
 }
+
+#[test]
+fn stage_1_can_learn_from_its_consistent_blend() {
+    let d = synthetic(2, 6, (48, 48), 7);
+    let mut cfg = tiny_prior_config();
+    cfg.stage1.unet.colour_head = true;
+    cfg.phase1_steps = 2;
+    cfg.phase2_steps = 0;
+    let plain = cfg.clone();
+    cfg.stage1_consistent_loss = Some(mhi_net::CONSISTENCY_BETA);
+    let start = |c: &mhi_net::TrainConfig, name: &str| {
+        Trainer::new(
+            c.clone(),
+            &d.path().join(name),
+            d.path(),
+            TrainLoss::Photometric,
+            Device::flex().autodiff(),
+        )
+        .unwrap()
+    };
+    let (mut with, mut without) = (start(&cfg, "with"), start(&plain, "without"));
+    // Same sample, same untrained weights: the loss differs only by its blended half.
+    let (a, b) = (with.step().unwrap(), without.step().unwrap());
+    assert!(a.loss.is_finite() && b.loss.is_finite());
+    assert!(
+        (a.loss - b.loss).abs() > 1e-6,
+        "{} against {}",
+        a.loss,
+        b.loss
+    );
+    assert_eq!(a.psnr, b.psnr, "the logged PSNR is each normal's image's");
+    // Recorded in config.json; bad settings refused before anything is written.
+    let run = mhi_net::RunDir::new(&d.path().join("with"));
+    assert_eq!(
+        run.config().unwrap().stage1_consistent_loss,
+        Some(mhi_net::CONSISTENCY_BETA)
+    );
+    for (beta, normals) in [(-1.0, 3), (f32::NAN, 3), (20.0, 1)] {
+        let mut bad = tiny_prior_config();
+        bad.stage1_consistent_loss = Some(beta);
+        if normals == 1 {
+            bad = mhi_net::TrainConfig {
+                stage1_consistent_loss: Some(beta),
+                ..common::tiny_networks(1).with_sweep_prior()
+            };
+        }
+        let dir = d.path().join(format!("bad-{normals}"));
+        let err = Trainer::new(
+            bad,
+            &dir.join("run"),
+            d.path(),
+            TrainLoss::Photometric,
+            Device::flex().autodiff(),
+        )
+        .err()
+        .unwrap();
+        assert!(err.to_string().contains("stage1_consistent_loss"), "{err}");
+        assert!(!dir.join("run").join("config.json").exists());
+    }
+}

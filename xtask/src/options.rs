@@ -151,6 +151,11 @@ pub struct TrainArgs {
     /// `render --blend consistent` does.
     #[arg(long)]
     pub blend_consistency: bool,
+    /// Stage 1 learns from its consistently blended image too (`render`'s default blend, β
+    /// 20, weights held constant): half its loss is each normal's image alone, half the blend,
+    /// so that a normal may specialise where the photos choose it.
+    #[arg(long)]
+    pub stage1_consistent_loss: bool,
     /// Start stage 1 from the latest checkpoint of this trained run (same stage-1 network,
     /// planes, depth range and prior); with `--phase1-steps 0` only the blending network
     /// trains.

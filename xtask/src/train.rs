@@ -83,6 +83,9 @@ fn new_config(a: &TrainArgs, sources: Vec<DataSource>) -> anyhow::Result<TrainCo
         }
         c.blend.consistency = Some(mhi_net::CONSISTENCY_BETA);
     }
+    if a.stage1_consistent_loss {
+        c.stage1_consistent_loss = Some(mhi_net::CONSISTENCY_BETA);
+    }
     c.width = a.size.0;
     c.height = a.size.1;
     c.planes = a.planes;

@@ -1119,7 +1119,7 @@ mod tests {
             t(&inc, [1, n, h, w]),
             20.0,
         );
-        let got: Vec<f32> = got.into_data().to_vec().unwrap();
+        let got: Vec<f32> = got.into_data().try_to_vec::<f32>().unwrap();
         // The same through the renderer's functions on images (RGB interleaved).
         let image = |f: &dyn Fn(usize, usize) -> f32| {
             Rgb32FImage::from_fn(w as u32, h as u32, |x, y| {

@@ -154,7 +154,7 @@ fn stage_1_can_learn_from_its_consistent_blend() {
     );
     assert_eq!(a.psnr, b.psnr, "the logged PSNR is each normal's image's");
     // Recorded in config.json; bad settings refused before anything is written.
-    let run = mhi_net::RunDir::new(&d.path().join("with"));
+    let run = mhi_net::RunDir::new(d.path().join("with"));
     assert_eq!(
         run.config().unwrap().stage1_consistent_loss,
         Some(mhi_net::CONSISTENCY_BETA)

@@ -199,7 +199,7 @@ pub fn kernel_paths() -> String {
             "baseline"
         },
         match l {
-            Level::Avx512 => "AVX-512F (16 channels), AVX2 + FMA (8)",
+            Level::Avx512 => "AVX-512F (16 channels, or 16 positions for blocks of 8)",
             Level::Avx2 => "AVX2 + FMA (8 channels)",
             Level::Baseline => "gemm only",
         }

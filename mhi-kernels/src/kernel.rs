@@ -371,8 +371,8 @@ impl Padded {
         let phase = d * slice;
         let chan = sy * sx * phase;
         let item = s.cin * chan;
-        // The slack after the last slice: a tile reads up to 24 positions past its start.
-        let len = s.batch * item + 2 * slice + 32;
+        // The slack after the last slice: a tile reads up to 48 positions past its start.
+        let len = s.batch * item + 2 * slice + 64;
         let mut data: Vec<f32> = Vec::with_capacity(len);
         // One channel of one batch item per task: its region zeroed (in the core's cache, in
         // parallel, rather than one serial memset of the whole buffer first), then each padded
@@ -939,7 +939,8 @@ pub fn grad_bias(s: &ConvShape, gy: &[f32]) -> Vec<f32> {
 /// input is read in place, with no packing and no im2col. Picked at run time where the CPU has
 /// both features; elsewhere [`forward_direct_gemm`] runs. Where the CPU also has AVX-512F and
 /// the output channels come in blocks of 16, the tiles hold vectors of 16 channels (32
-/// registers: 24 accumulators; the same bits as the AVX2 tiles, tested). The same sums as the gemm kernels in
+/// registers: 24 accumulators); in blocks of 8 only, vectors of 16 positions (8 channels × 2 or
+/// 3 vectors); both the same bits as the AVX2 tiles, tested. The same sums as the gemm kernels in
 /// another order (tested against the f64 reference and against them).
 #[cfg(target_arch = "x86_64")]
 pub mod blocked {
@@ -963,12 +964,11 @@ pub mod blocked {
         Avx2,
     }
 
-    /// Whether the AVX-512 tiles run for `s` ([`Width::Widest`]): the CPU has AVX-512F and the
-    /// output channels come in whole blocks of 16.
+    /// Whether the AVX-512 tiles run for `s` ([`Width::Widest`]): the CPU has AVX-512F (and the
+    /// output channels come in whole blocks of 8). Blocks of 16 take tiles of 16 channels a
+    /// vector; others, 16 positions a vector ([`tile512_positions`]).
     pub fn avx512_applies(s: &ConvShape) -> bool {
-        applies(s)
-            && s.cout.is_multiple_of(16)
-            && mhi_geom::simd::level() >= mhi_geom::simd::Level::Avx512
+        applies(s) && mhi_geom::simd::level() >= mhi_geom::simd::Level::Avx512
     }
 
     /// The convolution of the shapes [`super::forward_direct`] takes, `cout` a multiple of 8,
@@ -1004,7 +1004,36 @@ pub mod blocked {
         let mut out: Vec<f32> = Vec::with_capacity(len);
         let p = Padded::new(s, x);
         let dst = SharedMut(out.as_mut_ptr());
-        if width == Width::Widest && avx512_applies(s) {
+        if width == Width::Widest && avx512_applies(s) && !s.cout.is_multiple_of(16) {
+            // Blocks of 8 output channels: a vector of 8 channels would use half of each
+            // multiply-add, so the vectors run over 16 positions instead, 8 channels × 2 or 3
+            // vectors of accumulators, each weight broadcast from memory to 2 or 3 of them.
+            let kk: usize = s.kernel.iter().product();
+            let mut wf = Vec::with_capacity(w.len());
+            for ob in 0..s.cout / 8 {
+                for k in 0..kk {
+                    for ci in 0..s.cin {
+                        for l in 0..8 {
+                            wf.push(w[((ob * 8 + l) * s.cin + ci) * kk + k]);
+                        }
+                    }
+                }
+            }
+            let per_block = kk * s.cin * 8;
+            let tiling = Tiling::choose(s, &p, &[48, 32]);
+            run(s, &p, tiling, 8, bias, dst, |wide, at, q, taps, g, ob| {
+                let wb = &wf[ob * per_block..(ob + 1) * per_block];
+                let out = (wide, at, q);
+                // SAFETY: AVX-512F was detected (`avx512_applies`).
+                unsafe {
+                    if tiling.len == 48 {
+                        tile512_positions::<3>(&p, taps, g, s.cin, wb, out);
+                    } else {
+                        tile512_positions::<2>(&p, taps, g, s.cin, wb, out);
+                    }
+                }
+            });
+        } else if width == Width::Widest && avx512_applies(s) {
             // 32 vector registers: 24 accumulators (12 positions × 32 channels, or 24 × 16)
             // and the weights; the broadcast input rides in the multiply-add's memory operand.
             let nv = if s.cout.is_multiple_of(32) { 2 } else { 1 };
@@ -1218,7 +1247,8 @@ pub mod blocked {
         }
         let p = Padded::new(s, x);
         let (q, wq, ow) = (p.q, p.wq, s.output()[2]);
-        let wide512 = width == Width::Widest && avx512_applies(s);
+        // Vectors of 16 output channels: whole blocks of 16 only.
+        let wide512 = width == Width::Widest && avx512_applies(s) && s.cout.is_multiple_of(16);
         let (lanes, pairs_per_tile) = match (
             wide512,
             s.cout.is_multiple_of(32),
@@ -1454,6 +1484,54 @@ pub mod blocked {
                 for (o, val) in run.iter_mut().zip(vals) {
                     *o = val[v][lane];
                 }
+            }
+        }
+    }
+
+    /// [`tile`] for a block of 8 output channels with vectors over 16 positions:
+    /// `wide[at + c · q + i]` for channel `c < 8` and position `i < 16 V`, from the weights
+    /// `w[k][ci][c]`. Each output sums the same products in the same order as [`tile`] (kernel
+    /// offset, then input channel), one fused multiply-add each: the same bits.
+    ///
+    /// # Safety
+    /// The CPU has AVX-512F.
+    #[target_feature(enable = "avx512f")]
+    unsafe fn tile512_positions<const V: usize>(
+        p: &Padded,
+        taps: &[(usize, usize)],
+        g: usize,
+        cin: usize,
+        w: &[f32],
+        (wide, at, q): (&mut [f32], usize, usize),
+    ) {
+        let mut acc = [[_mm512_setzero_ps(); V]; 8];
+        for &(k, origin) in taps {
+            let wk = &w[k * cin * 8..(k + 1) * cin * 8];
+            let at = origin + g;
+            for (ci, wr) in wk.chunks_exact(8).enumerate() {
+                let x0 = at + ci * p.chan;
+                let xr = &p.data[x0..x0 + 16 * V];
+                let mut xv = [_mm512_setzero_ps(); V];
+                for (v, x) in xv.iter_mut().enumerate() {
+                    let part: &[f32; 16] = xr[16 * v..16 * v + 16].try_into().expect("16 values");
+                    // SAFETY: a plain transmute of 16 floats into a vector.
+                    *x = unsafe { std::mem::transmute::<[f32; 16], __m512>(*part) };
+                }
+                for (a, wv) in acc.iter_mut().zip(wr) {
+                    let b = _mm512_set1_ps(*wv);
+                    for (r, x) in a.iter_mut().zip(&xv) {
+                        *r = _mm512_fmadd_ps(*x, b, *r);
+                    }
+                }
+            }
+        }
+        for (c, a) in acc.iter().enumerate() {
+            let row = at + c * q;
+            let out: &mut [f32] = &mut wide[row..row + 16 * V];
+            for (v, r) in a.iter().enumerate() {
+                // SAFETY: a plain transmute of a vector into 16 floats.
+                let vals = unsafe { std::mem::transmute::<__m512, [f32; 16]>(*r) };
+                out[16 * v..16 * v + 16].copy_from_slice(&vals);
             }
         }
     }

@@ -24,7 +24,8 @@
 //! kernel (`kernel::blocked`, a tile of positions × 8 or 16 output channels kept in registers
 //! across every offset and input channel) where the CPU has both and the output channels come in
 //! blocks of 8 — with AVX-512F and channels in blocks of 16 its tiles are 16 channels a vector
-//! (`tile512`, 24 accumulators; the same bits as the AVX2 tiles, tested) — else one `gemm` per
+//! (`tile512`, 24 accumulators), in blocks of 8 only 16 positions a vector (`tile512_positions`),
+//! each the same bits as the AVX2 tiles, tested — else one `gemm` per
 //! offset (gemm is built with `x86-v4`: its AVX-512 microkernels where the CPU has them); the
 //! weight gradient in the same register tiles turned around (`blocked::grad_weight`: (kernel
 //! offset, input channel) pairs × output channels, summed over positions) where it has 16 to 64
@@ -1052,7 +1053,7 @@ mod tests {
     #[test]
     fn the_direct_kernel_matches_an_f64_reference() {
         let dev = Device::flex();
-        let wide: [Case; 10] = [
+        let wide: [Case; 12] = [
             (2, 16, 8, [3, 9, 11], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
             // Strides in the image axes: odd and even sizes, a stride of 3, dilation with stride.
             (2, 8, 16, [3, 17, 16], [3, 3, 3], [1, 2, 2], [1; 3], [1; 3]),
@@ -1104,6 +1105,10 @@ mod tests {
                 [1, 4, 4],
             ),
             (2, 5, 16, [2, 5, 32], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            // Blocks of 8 output channels (AVX-512: 16 positions a vector), tiles by rows of
+            // 32 and through padded rows of 48.
+            (1, 5, 8, [2, 6, 32], [3, 3, 3], [1; 3], [1; 3], [1; 3]),
+            (2, 6, 24, [2, 7, 9], [3, 3, 3], [1; 3], [1, 2, 2], [1, 2, 2]),
         ];
         for (batch, cin, cout, input, kernel, stride, dilation, padding) in
             CASES.into_iter().chain(wide)
@@ -1123,8 +1128,9 @@ mod tests {
             if blocked::applies(&s) {
                 kernels.push(("blocked", blocked::forward(&s, &x, &w, Some(&bias))));
             }
-            // Where the CPU has AVX-512F, its tiles give the AVX2 tiles' bits (the same
-            // products summed in the same order).
+            // Where the CPU has AVX-512F, its tiles (16 channels or, for blocks of 8, 16
+            // positions a vector) give the AVX2 tiles' bits (the same products summed in the
+            // same order).
             #[cfg(target_arch = "x86_64")]
             if blocked::avx512_applies(&s) {
                 use blocked::Width;

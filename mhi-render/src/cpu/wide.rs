@@ -54,20 +54,6 @@ pub(super) unsafe fn composite_row<const L: usize>(
     c: &mut [f32],
     stop: Option<&[f32]>,
 ) -> usize {
-    // SAFETY (the whole body): the CPU has AVX-512F (the caller's promise); every pointer
-    // access stays inside the slices, as each says where.
-    unsafe { composite_row_inner(layers, (rw, rh), (x0, x1), t, c, stop) }
-}
-
-#[target_feature(enable = "avx512f")]
-unsafe fn composite_row_inner<const L: usize>(
-    layers: &[LayerRow<'_>; L],
-    (rw, rh): (usize, usize),
-    (x0, x1): (usize, usize),
-    t: &mut [f32],
-    c: &mut [f32],
-    stop: Option<&[f32]>,
-) -> usize {
     assert!(x0 <= x1 && x1 <= t.len() && 4 * x1 <= c.len());
     assert!(stop.is_none_or(|s| s.len() >= x1 && L == 1));
     let mut composited = 0;

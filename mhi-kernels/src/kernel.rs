@@ -966,7 +966,7 @@ pub mod blocked {
 
     /// Whether the AVX-512 tiles run for `s` ([`Width::Widest`]): the CPU has AVX-512F (and the
     /// output channels come in whole blocks of 8). Blocks of 16 take tiles of 16 channels a
-    /// vector; others, 16 positions a vector ([`tile512_positions`]).
+    /// vector; others, 16 positions a vector (`tile512_positions`).
     pub fn avx512_applies(s: &ConvShape) -> bool {
         applies(s) && mhi_geom::simd::level() >= mhi_geom::simd::Level::Avx512
     }

@@ -84,6 +84,11 @@ fn new_config(a: &TrainArgs, sources: Vec<DataSource>) -> anyhow::Result<TrainCo
         c.blend.consistency = Some(mhi_net::CONSISTENCY_BETA);
     }
     if a.stage1_consistent_loss {
+        if a.normals < 2 {
+            bail!(
+                "--stage1-consistent-loss blends normals against each other: it needs --normals 2 or more"
+            );
+        }
         c.stage1_consistent_loss = Some(mhi_net::CONSISTENCY_BETA);
     }
     c.width = a.size.0;

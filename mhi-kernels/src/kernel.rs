@@ -1008,18 +1008,9 @@ pub mod blocked {
             // Blocks of 8 output channels: a vector of 8 channels would use half of each
             // multiply-add, so the vectors run over 16 positions instead, 8 channels × 2 or 3
             // vectors of accumulators, each weight broadcast from memory to 2 or 3 of them.
-            let kk: usize = s.kernel.iter().product();
-            let mut wf = Vec::with_capacity(w.len());
-            for ob in 0..s.cout / 8 {
-                for k in 0..kk {
-                    for ci in 0..s.cin {
-                        for l in 0..8 {
-                            wf.push(w[((ob * 8 + l) * s.cin + ci) * kk + k]);
-                        }
-                    }
-                }
-            }
-            let per_block = kk * s.cin * 8;
+            // The AVX2 tiles' weight layout, each 8 channels' weights as plain floats.
+            let wf = pack::<[f32; 8], 8>(s, w, 1, |c| c);
+            let per_block = wf.len() / (s.cout / 8);
             let tiling = Tiling::choose(s, &p, &[48, 32]);
             run(s, &p, tiling, 8, bias, dst, |wide, at, q, taps, g, ob| {
                 let wb = &wf[ob * per_block..(ob + 1) * per_block];
@@ -1490,7 +1481,7 @@ pub mod blocked {
 
     /// [`tile`] for a block of 8 output channels with vectors over 16 positions:
     /// `wide[at + c · q + i]` for channel `c < 8` and position `i < 16 V`, from the weights
-    /// `w[k][ci][c]`. Each output sums the same products in the same order as [`tile`] (kernel
+    /// `w[k · cin + ci][c]`. Each output sums the same products in the same order as [`tile`] (kernel
     /// offset, then input channel), one fused multiply-add each: the same bits.
     ///
     /// # Safety
@@ -1501,14 +1492,14 @@ pub mod blocked {
         taps: &[(usize, usize)],
         g: usize,
         cin: usize,
-        w: &[f32],
+        w: &[[f32; 8]],
         (wide, at, q): (&mut [f32], usize, usize),
     ) {
         let mut acc = [[_mm512_setzero_ps(); V]; 8];
         for &(k, origin) in taps {
-            let wk = &w[k * cin * 8..(k + 1) * cin * 8];
+            let wk = &w[k * cin..(k + 1) * cin];
             let at = origin + g;
-            for (ci, wr) in wk.chunks_exact(8).enumerate() {
+            for (ci, wr) in wk.iter().enumerate() {
                 let x0 = at + ci * p.chan;
                 let xr = &p.data[x0..x0 + 16 * V];
                 let mut xv = [_mm512_setzero_ps(); V];

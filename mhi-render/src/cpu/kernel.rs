@@ -464,66 +464,64 @@ impl RowContext<'_> {
                         samples += 2 * tw;
                         widen_reads(&mut seen, &idx[x0..x1]);
                         widen_reads(&mut seen, &idx2[x0..x1]);
-                        #[cfg(target_arch = "x86_64")]
                         if WIDE {
-                            use super::wide::{LayerRow, composite_row};
-                            let layer = |alpha, color, (idx, fx, fy, sx, sy), far| LayerRow {
-                                alpha,
-                                color,
-                                idx,
-                                fx,
-                                fy,
-                                sx,
-                                sy,
-                                far,
-                            };
-                            let layers = [
-                                layer(alpha1, color1, (&idx, &fxs, &fys, &sxs, &sys), false),
-                                layer(alpha2, color2, (&idx2, &fxs2, &fys2, &sxs2, &sys2), far2),
-                            ];
-                            // SAFETY: `WIDE` runs only in `band_avx512`, after the CPU was
-                            // found to have AVX-512F and the image to fit the gathers.
-                            #[allow(unsafe_code)]
-                            unsafe {
-                                composite_row(
-                                    &layers,
-                                    (rw, rh),
-                                    (x0, x1),
-                                    &mut row.t,
-                                    &mut row.c,
-                                    None,
-                                );
+                            // Sixteen pixels at a time (`wide.rs`), the same bits.
+                            #[cfg(target_arch = "x86_64")]
+                            {
+                                use super::wide::{LayerRow, composite_row};
+                                let layers = [
+                                    LayerRow::new(
+                                        (alpha1, color1),
+                                        (&idx, &fxs, &fys, &sxs, &sys),
+                                        false,
+                                    ),
+                                    LayerRow::new(
+                                        (alpha2, color2),
+                                        (&idx2, &fxs2, &fys2, &sxs2, &sys2),
+                                        far2,
+                                    ),
+                                ];
+                                // SAFETY: `WIDE` runs only in `band_avx512`, after the CPU was
+                                // found to have AVX-512F and the image to fit the gathers.
+                                #[allow(unsafe_code)]
+                                unsafe {
+                                    composite_row(
+                                        &layers,
+                                        (rw, rh),
+                                        (x0, x1),
+                                        &mut row.t,
+                                        &mut row.c,
+                                        None,
+                                    );
+                                }
                             }
-                            for n in &mut row.next {
-                                *n += 2;
+                        } else {
+                            let run = x0..x1;
+                            let first = idx[run.clone()]
+                                .iter()
+                                .zip(fxs[run.clone()].iter().zip(&fys[run.clone()]))
+                                .zip(sxs[run.clone()].iter().zip(&sys[run.clone()]));
+                            let second = idx2[run.clone()]
+                                .iter()
+                                .zip(fxs2[run.clone()].iter().zip(&fys2[run.clone()]))
+                                .zip(sxs2[run.clone()].iter().zip(&sys2[run.clone()]));
+                            let pixels = row.t[run.clone()]
+                                .iter_mut()
+                                .zip(row.c[4 * x0..4 * x1].as_chunks_mut::<4>().0)
+                                .zip(first.zip(second));
+                            for (
+                                (tx, cx),
+                                (
+                                    ((&ix1, (&fx1, &fy1)), (&sx1, &sy1)),
+                                    ((&ix2, (&fx2, &fy2)), (&sx2, &sy2)),
+                                ),
+                            ) in pixels
+                            {
+                                let (a, col) = fetch!(alpha1, color1, ix1, fx1, fy1, sx1, sy1);
+                                composite!(tx, cx, a, col);
+                                let (a, col) = fetch!(alpha2, color2, ix2, fx2, fy2, sx2, sy2);
+                                composite!(tx, cx, if far2 { 1.0 } else { a }, col);
                             }
-                            continue;
-                        }
-                        let run = x0..x1;
-                        let first = idx[run.clone()]
-                            .iter()
-                            .zip(fxs[run.clone()].iter().zip(&fys[run.clone()]))
-                            .zip(sxs[run.clone()].iter().zip(&sys[run.clone()]));
-                        let second = idx2[run.clone()]
-                            .iter()
-                            .zip(fxs2[run.clone()].iter().zip(&fys2[run.clone()]))
-                            .zip(sxs2[run.clone()].iter().zip(&sys2[run.clone()]));
-                        let pixels = row.t[run.clone()]
-                            .iter_mut()
-                            .zip(row.c[4 * x0..4 * x1].as_chunks_mut::<4>().0)
-                            .zip(first.zip(second));
-                        for (
-                            (tx, cx),
-                            (
-                                ((&ix1, (&fx1, &fy1)), (&sx1, &sy1)),
-                                ((&ix2, (&fx2, &fy2)), (&sx2, &sy2)),
-                            ),
-                        ) in pixels
-                        {
-                            let (a, col) = fetch!(alpha1, color1, ix1, fx1, fy1, sx1, sy1);
-                            composite!(tx, cx, a, col);
-                            let (a, col) = fetch!(alpha2, color2, ix2, fx2, fy2, sx2, sy2);
-                            composite!(tx, cx, if far2 { 1.0 } else { a }, col);
                         }
                         for n in &mut row.next {
                             *n += 2;
@@ -577,60 +575,51 @@ impl RowContext<'_> {
                         };
                         // The texels the run reads: where to prefetch the next layer.
                         widen_reads(&mut seen, &idx[x0..x1]);
-                        #[cfg(target_arch = "x86_64")]
                         if WIDE {
-                            use super::wide::{LayerRow, composite_row};
-                            let layer = LayerRow {
-                                alpha,
-                                color,
-                                idx: &idx,
-                                fx: &fxs,
-                                fy: &fys,
-                                sx: &sxs,
-                                sy: &sys,
-                                far,
-                            };
-                            let thr = stop.then_some(&row.thr[..]);
-                            // SAFETY: as in the pair path above.
-                            #[allow(unsafe_code)]
-                            let done = unsafe {
-                                composite_row(
-                                    &[layer],
-                                    (rw, rh),
-                                    (x0, x1),
-                                    &mut row.t,
-                                    &mut row.c,
-                                    thr,
-                                )
-                            };
-                            samples += done;
-                            for kk in k..k_end {
-                                row.next[kk] += 1;
-                                if stop {
-                                    row.open[kk] = open_span(row.open[kk], &row.t, &row.thr);
+                            // Sixteen pixels at a time (`wide.rs`), the same bits.
+                            #[cfg(target_arch = "x86_64")]
+                            {
+                                use super::wide::{LayerRow, composite_row};
+                                let layer = LayerRow::new(
+                                    (alpha, color),
+                                    (&idx, &fxs, &fys, &sxs, &sys),
+                                    far,
+                                );
+                                let thr = stop.then_some(&row.thr[..]);
+                                // SAFETY: as in the pair path above.
+                                #[allow(unsafe_code)]
+                                let done = unsafe {
+                                    composite_row(
+                                        &[layer],
+                                        (rw, rh),
+                                        (x0, x1),
+                                        &mut row.t,
+                                        &mut row.c,
+                                        thr,
+                                    )
+                                };
+                                samples += done;
+                            }
+                        } else {
+                            // Pass 2: bilinear fetches and front-to-back compositing. Zipped slices
+                            // and one window of alpha and of colour per sample, so that the loop
+                            // checks two bounds a sample instead of a dozen.
+                            let run = x0..x1;
+                            let pixels = row.t[run.clone()]
+                                .iter_mut()
+                                .zip(&row.thr[run.clone()])
+                                .zip(row.c[4 * x0..4 * x1].as_chunks_mut::<4>().0)
+                                .zip(&idx[run.clone()])
+                                .zip(fxs[run.clone()].iter().zip(&fys[run.clone()]))
+                                .zip(sxs[run.clone()].iter().zip(&sys[run]));
+                            for (((((tx, &th), cx), &ix), (&fx, &fy)), (&sx, &sy)) in pixels {
+                                if stop && *tx <= th {
+                                    continue;
                                 }
+                                samples += 1;
+                                let (a, col) = fetch!(alpha, color, ix, fx, fy, sx, sy);
+                                composite!(tx, cx, if far { 1.0 } else { a }, col);
                             }
-                            k = k_end;
-                            continue;
-                        }
-                        // Pass 2: bilinear fetches and front-to-back compositing. Zipped slices
-                        // and one window of alpha and of colour per sample, so that the loop
-                        // checks two bounds a sample instead of a dozen.
-                        let run = x0..x1;
-                        let pixels = row.t[run.clone()]
-                            .iter_mut()
-                            .zip(&row.thr[run.clone()])
-                            .zip(row.c[4 * x0..4 * x1].as_chunks_mut::<4>().0)
-                            .zip(&idx[run.clone()])
-                            .zip(fxs[run.clone()].iter().zip(&fys[run.clone()]))
-                            .zip(sxs[run.clone()].iter().zip(&sys[run]));
-                        for (((((tx, &th), cx), &ix), (&fx, &fy)), (&sx, &sy)) in pixels {
-                            if stop && *tx <= th {
-                                continue;
-                            }
-                            samples += 1;
-                            let (a, col) = fetch!(alpha, color, ix, fx, fy, sx, sy);
-                            composite!(tx, cx, if far { 1.0 } else { a }, col);
                         }
                         for kk in k..k_end {
                             row.next[kk] += 1;

@@ -1,9 +1,10 @@
-//! The exact render's compositing sixteen pixels at a time with AVX-512F: the bilinear fetch as
-//! gathers (four alpha taps, twelve colour taps), the mix and the front-to-back step on vectors
-//! of sixteen pixels. Each lane does what the AVX2 + FMA band loop does for its pixel, in the same
-//! order and rounding (weights as plain products, the mix and the colour step as fused
-//! multiply-adds): the same bits (tested). Samples whose taps are not all inside the image go
-//! through the scalar zero-padded sampler, lane by lane.
+//! A render's compositing sixteen pixels at a time with AVX-512F: the bilinear fetch as 64-bit
+//! gathers of tap pairs (alpha left and right; a row's six colour floats as three pairs), the mix
+//! and the front-to-back step on vectors of sixteen pixels, a pruned render's stops as lane
+//! masks. Each lane does what the AVX2 + FMA band loop does for its pixel, in the same order and
+//! rounding (weights as plain products, the mix and the colour step as fused multiply-adds): the
+//! same bits (tested). Samples whose taps are not all inside the image go through the scalar
+//! zero-padded sampler, lane by lane.
 
 #![allow(unsafe_code)]
 
@@ -22,6 +23,29 @@ pub(super) struct LayerRow<'a> {
     pub(super) sy: &'a [f32],
     /// The far layer: composited with alpha 1.
     pub(super) far: bool,
+}
+
+/// Pass 1's output for a row: top-left texel index, fractions, positions.
+type Pass1<'a> = (&'a [u32], &'a [f32], &'a [f32], &'a [f32], &'a [f32]);
+
+impl<'a> LayerRow<'a> {
+    /// A layer's texels `(alpha, color)` and pass 1's `(idx, fx, fy, sx, sy)` for a row.
+    pub(super) fn new(
+        (alpha, color): (&'a [f32], &'a [f32]),
+        (idx, fx, fy, sx, sy): Pass1<'a>,
+        far: bool,
+    ) -> Self {
+        Self {
+            alpha,
+            color,
+            idx,
+            fx,
+            fy,
+            sx,
+            sy,
+            far,
+        }
+    }
 }
 
 /// Whether the wide path can address a `rw × rh` reference image: every colour tap's index fits

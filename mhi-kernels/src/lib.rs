@@ -11,7 +11,8 @@
 //! (plain or autodiff) it runs these kernels; on any other device, and for what the kernels do not
 //! cover (groups, f64, asymmetric padding), it is burn's `conv3d`. [`conv2d`] is the same kernel
 //! on one plane. [`channel_norm`] is layer normalisation over the channel axis without the two
-//! permutes burn's last-axis layer norm needs ([`norm`]); [`max_pool2d`] is max pooling without
+//! permutes burn's last-axis layer norm needs ([`norm`]; [`channel_norm_relu`] with the ReLU
+//! behind it in the same pass); [`max_pool2d`] is max pooling without
 //! burn-flex's general 3D pooling and `i64` indices ([`pool`]).
 //!
 //! # The kernels, in one paragraph
@@ -108,20 +109,24 @@ pub trait FastOps: Backend {
         Self::conv3d_weight_backward(x, weight, grad, options)
     }
 
-    /// Layer normalisation over axis 1 (channels) of a `[B, C, …]` tensor.
+    /// Layer normalisation over axis 1 (channels) of a `[B, C, …]` tensor, followed by ReLU
+    /// in the same pass with `relu`.
     fn channel_norm(
         x: FloatTensor<Self>,
         gamma: FloatTensor<Self>,
         beta: FloatTensor<Self>,
         eps: f64,
+        relu: bool,
     ) -> FloatTensor<Self>;
 
     /// The gradients `(x, gamma, beta)` of [`FastOps::channel_norm`].
     fn channel_norm_backward(
         x: FloatTensor<Self>,
         gamma: FloatTensor<Self>,
+        beta: FloatTensor<Self>,
         grad: FloatTensor<Self>,
         eps: f64,
+        relu: bool,
     ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>);
 
     /// Max pooling of a `[B, C, H, W]` tensor over `k × k` windows at stride `s` (no padding,
@@ -246,6 +251,26 @@ pub fn channel_norm<const D: usize>(
     epsilon: f64,
     x: Tensor<D>,
 ) -> Tensor<D> {
+    channel_norm_then(norm, epsilon, x, false)
+}
+
+/// [`channel_norm`] followed by ReLU, in one pass over the tensor on the CPU backend (and one in
+/// the backward, which recomputes the mask instead of keeping the output): the same values and
+/// gradients as `relu(channel_norm(..))`, without two full passes and a kept copy.
+pub fn channel_norm_relu<const D: usize>(
+    norm: &burn::nn::LayerNorm,
+    epsilon: f64,
+    x: Tensor<D>,
+) -> Tensor<D> {
+    channel_norm_then(norm, epsilon, x, true)
+}
+
+fn channel_norm_then<const D: usize>(
+    norm: &burn::nn::LayerNorm,
+    epsilon: f64,
+    x: Tensor<D>,
+    relu: bool,
+) -> Tensor<D> {
     let beta = match &norm.beta {
         Some(b) => b.val(),
         None => norm.gamma.val().zeros_like(),
@@ -259,13 +284,19 @@ pub fn channel_norm<const D: usize>(
         back.pop();
         let to_last: [usize; D] = to_last.try_into().expect("D axes");
         let back: [usize; D] = back.try_into().expect("D axes");
-        return norm.forward(x.permute(to_last)).permute(back);
+        let y = norm.forward(x.permute(to_last)).permute(back);
+        return if relu {
+            burn::tensor::activation::relu(y)
+        } else {
+            y
+        };
     }
     let out = <burn::backend::Dispatch as FastOps>::channel_norm(
         x.into_dispatch(),
         norm.gamma.val().into_dispatch(),
         beta.into_dispatch(),
         epsilon,
+        relu,
     );
     Tensor::<D>::from_dispatch(out)
 }
@@ -485,24 +516,33 @@ impl FastOps for Flex {
         flex(gw, weight.shape().to_vec())
     }
 
-    fn channel_norm(x: FlexTensor, gamma: FlexTensor, beta: FlexTensor, eps: f64) -> FlexTensor {
+    fn channel_norm(
+        x: FlexTensor,
+        gamma: FlexTensor,
+        beta: FlexTensor,
+        eps: f64,
+        relu: bool,
+    ) -> FlexTensor {
         let shape = x.shape().to_vec();
         let s = norm_shape(&shape);
         let (x, gamma, beta) = (f32s(x), f32s(gamma), f32s(beta));
-        let y = norm::forward(&s, x.storage(), gamma.storage(), beta.storage(), eps);
+        let y = norm::forward(&s, x.storage(), gamma.storage(), beta.storage(), eps, relu);
         flex(y, shape)
     }
 
     fn channel_norm_backward(
         x: FlexTensor,
         gamma: FlexTensor,
+        beta: FlexTensor,
         grad: FlexTensor,
         eps: f64,
+        relu: bool,
     ) -> (FlexTensor, FlexTensor, FlexTensor) {
         let shape = x.shape().to_vec();
         let s = norm_shape(&shape);
-        let (x, g, gy) = (f32s(x), f32s(gamma), f32s(grad));
-        let (gx, gg, gb) = norm::backward(&s, x.storage(), g.storage(), gy.storage(), eps);
+        let (x, g, b, gy) = (f32s(x), f32s(gamma), f32s(beta), f32s(grad));
+        let beta = relu.then(|| b.storage::<f32>());
+        let (gx, gg, gb) = norm::backward(&s, x.storage(), g.storage(), gy.storage(), eps, beta);
         (
             flex(gx, shape),
             flex(gg, vec![s.channels]),
@@ -640,6 +680,7 @@ impl<B: Backend + FastOps, C: CheckpointStrategy> FastOps for Autodiff<B, C> {
         gamma: FloatTensor<Self>,
         beta: FloatTensor<Self>,
         eps: f64,
+        relu: bool,
     ) -> FloatTensor<Self> {
         match ChannelNorm
             .prepare::<C>([x.node(), gamma.node(), beta.node()])
@@ -649,19 +690,22 @@ impl<B: Backend + FastOps, C: CheckpointStrategy> FastOps for Autodiff<B, C> {
             OpsKind::Tracked(mut prep) => {
                 let x_state = prep.checkpoint(&x);
                 let gamma_state = prep.checkpoint(&gamma);
+                let beta_state = prep.checkpoint(&beta);
                 let y = B::channel_norm(
                     x.into_primitive(),
                     gamma.into_primitive(),
                     beta.into_primitive(),
                     eps,
+                    relu,
                 );
-                prep.finish((x_state, gamma_state, eps), y)
+                prep.finish((x_state, gamma_state, beta_state, eps, relu), y)
             }
             OpsKind::UnTracked(prep) => prep.finish(B::channel_norm(
                 x.into_primitive(),
                 gamma.into_primitive(),
                 beta.into_primitive(),
                 eps,
+                relu,
             )),
         }
     }
@@ -669,16 +713,20 @@ impl<B: Backend + FastOps, C: CheckpointStrategy> FastOps for Autodiff<B, C> {
     fn channel_norm_backward(
         x: FloatTensor<Self>,
         gamma: FloatTensor<Self>,
+        beta: FloatTensor<Self>,
         grad: FloatTensor<Self>,
         eps: f64,
+        relu: bool,
     ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
         // The gradients themselves, computed by the inner backend and not tracked (this project
         // never differentiates a gradient).
         let (gx, gg, gb) = B::channel_norm_backward(
             x.into_primitive(),
             gamma.into_primitive(),
+            beta.into_primitive(),
             grad.into_primitive(),
             eps,
+            relu,
         );
         let lift = <FloatTensor<Self>>::new;
         (lift(gx), lift(gg), lift(gb))
@@ -815,7 +863,7 @@ impl<B: Backend + FastOps> Backward<B, 1> for MaxPool {
 struct ChannelNorm;
 
 impl<B: Backend + FastOps> Backward<B, 3> for ChannelNorm {
-    type State = (NodeId, NodeId, f64);
+    type State = (NodeId, NodeId, NodeId, f64, bool);
 
     fn backward(
         self,
@@ -825,10 +873,11 @@ impl<B: Backend + FastOps> Backward<B, 3> for ChannelNorm {
     ) {
         let [node_x, node_gamma, node_beta] = ops.parents;
         let grad = grads.consume::<B>(&ops.node);
-        let (x_state, gamma_state, eps) = ops.state;
+        let (x_state, gamma_state, beta_state, eps, relu) = ops.state;
         let x = checkpointer.retrieve_node_output::<B::FloatTensorPrimitive>(x_state);
         let gamma = checkpointer.retrieve_node_output::<B::FloatTensorPrimitive>(gamma_state);
-        let (gx, gg, gb) = B::channel_norm_backward(x, gamma, grad, eps);
+        let beta = checkpointer.retrieve_node_output::<B::FloatTensorPrimitive>(beta_state);
+        let (gx, gg, gb) = B::channel_norm_backward(x, gamma, beta, grad, eps, relu);
         for (node, g) in [(node_x, gx), (node_gamma, gg), (node_beta, gb)] {
             if let Some(node) = node {
                 grads.register::<B>(node.id, g);
@@ -1511,6 +1560,9 @@ mod tests {
         assert!(super::pool::PoolShape::new(1, 2, 5, 3, 2).is_none());
     }
 
+    /// With and without the ReLU fused behind it: the same values and gradients as burn's layer
+    /// norm (then burn's ReLU). Inputs in [−2, 3] put about a third of the normalised values below
+    /// zero, so a missing or inverted mask fails.
     #[test]
     fn channel_norm_and_its_gradients_match_burns_layer_norm() {
         use super::FastOps;
@@ -1524,11 +1576,15 @@ mod tests {
                 &dev,
             )
         };
-        for shape in [
+        let shapes = [
             vec![2, 3, 4, 5, 7],
             vec![3, 8, 2, 33, 40],
             vec![1, 1, 1, 3, 1],
-        ] {
+        ];
+        for (shape, relu) in shapes
+            .iter()
+            .flat_map(|s| [(s.clone(), false), (s.clone(), true)])
+        {
             let c = shape[1];
             let x = r(shape.clone()).require_grad();
             let gamma =
@@ -1542,14 +1598,28 @@ mod tests {
                 1e-5,
             )
             .permute([0, 4, 1, 2, 3]);
+            let theirs = if relu {
+                burn::tensor::activation::relu(theirs)
+            } else {
+                theirs
+            };
             let ours = Tensor::<5>::from_dispatch(<Dispatch as FastOps>::channel_norm(
                 x.clone().into_dispatch(),
                 gamma.clone().into_dispatch(),
                 beta.clone().into_dispatch(),
                 1e-5,
+                relu,
             ));
             let err = max_diff(&values(&ours), &values(&theirs));
-            assert!(err < 1e-4, "{shape:?}: forward differs by {err}");
+            assert!(
+                err < 1e-4,
+                "{shape:?}, relu {relu}: forward differs by {err}"
+            );
+            // (With one channel every normalised value is 0 and the output is beta.)
+            if relu && c > 1 {
+                let zeros = values(&ours).iter().filter(|v| **v == 0.0).count();
+                assert!(zeros > 0, "{shape:?}: no value was cut by the ReLU");
+            }
             let weights = r(shape.clone());
             let g1 = (theirs * weights.clone()).sum().backward();
             let g2 = (ours * weights).sum().backward();
@@ -1573,7 +1643,7 @@ mod tests {
                 let tolerance = if *name == "x" { 1e-3 } else { 1e-4 };
                 assert!(
                     err < tolerance,
-                    "{shape:?}: gradient of {name} differs by {err} (relative)"
+                    "{shape:?}, relu {relu}: gradient of {name} differs by {err} (relative)"
                 );
             }
         }

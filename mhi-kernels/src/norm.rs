@@ -50,8 +50,22 @@ fn stats(s: &NormShape, x: &[f32], eps: f64) -> (Vec<f32>, Vec<f32>) {
     (mean, rstd)
 }
 
-/// `y = (x − mean) / sqrt(var + eps) · gamma + beta`, statistics over the channels.
-pub fn forward(s: &NormShape, x: &[f32], gamma: &[f32], beta: &[f32], eps: f64) -> Vec<f32> {
+/// ReLU as burn's: `v` where `v > 0`, else 0 (NaN stays NaN).
+#[inline(always)]
+fn relu(v: f32) -> f32 {
+    if v <= 0.0 { 0.0 } else { v }
+}
+
+/// `y = (x − mean) / sqrt(var + eps) · gamma + beta`, statistics over the channels; with
+/// `relu`, `max(y, 0)` in the same pass (the values of the two ops one after the other).
+pub fn forward(
+    s: &NormShape,
+    x: &[f32],
+    gamma: &[f32],
+    beta: &[f32],
+    eps: f64,
+    relu: bool,
+) -> Vec<f32> {
     assert_eq!(x.len(), s.batch * s.channels * s.positions);
     let (c, n) = (s.channels, s.positions);
     let (mean, rstd) = stats(s, x, eps);
@@ -66,21 +80,50 @@ pub fn forward(s: &NormShape, x: &[f32], gamma: &[f32], beta: &[f32], eps: f64) 
             for i in 0..n {
                 out[i] = (xs[i] - m[i]) * r[i] * g + bt;
             }
+            if relu {
+                out.iter_mut().for_each(|v| *v = self::relu(*v));
+            }
         });
     y
 }
 
-/// The gradients `(x, gamma, beta)` of [`forward`] given the output gradient `gy`.
+/// The gradients `(x, gamma, beta)` of [`forward`] given the output gradient `gy`; with
+/// `relu: Some(beta)`, of the normalisation followed by ReLU (`gy` kept where the forward's
+/// output, recomputed from `x`, `gamma` and `beta` in the same operations, is not at or below
+/// zero, as burn's `relu_backward`).
 pub fn backward(
     s: &NormShape,
     x: &[f32],
     gamma: &[f32],
     gy: &[f32],
     eps: f64,
+    relu: Option<&[f32]>,
 ) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
     assert_eq!(x.len(), s.batch * s.channels * s.positions);
     let (c, n) = (s.channels, s.positions);
     let (mean, rstd) = stats(s, x, eps);
+    // Behind a ReLU: the output gradient zeroed where the normalised value was not above zero.
+    let masked: Vec<f32>;
+    let gy = match relu {
+        None => gy,
+        Some(beta) => {
+            let mut m = vec![0.0f32; gy.len()];
+            m.par_chunks_mut(n.max(1))
+                .enumerate()
+                .for_each(|(row, out)| {
+                    let (b, ch) = (row / c, row % c);
+                    let (g, bt) = (gamma[ch], beta[ch]);
+                    let (xs, gs) = (&x[row * n..(row + 1) * n], &gy[row * n..(row + 1) * n]);
+                    let (mm, r) = (&mean[b * n..(b + 1) * n], &rstd[b * n..(b + 1) * n]);
+                    for i in 0..n {
+                        let y = (xs[i] - mm[i]) * r[i] * g + bt;
+                        out[i] = if y <= 0.0 { 0.0 } else { gs[i] };
+                    }
+                });
+            masked = m;
+            &masked
+        }
+    };
     // Per position: a = mean_c(gy · gamma), b = mean_c(gy · gamma · x̂).
     let mut a = vec![0.0f32; s.batch * n];
     let mut bb = vec![0.0f32; s.batch * n];

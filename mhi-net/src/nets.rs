@@ -173,7 +173,7 @@ impl Block3d {
             return relu(group_norm(&self.norm, self.groups, x));
         }
         // Layer norm over channels: channels last, normalise, back.
-        relu(crate::fastconv::channel_norm(&self.norm, NORM_EPSILON, x))
+        crate::fastconv::channel_norm_relu(&self.norm, NORM_EPSILON, x)
     }
 }
 
@@ -560,7 +560,7 @@ impl Block2d {
 
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         let x = crate::fastconv::forward2d(&self.conv, x);
-        relu(crate::fastconv::channel_norm(&self.norm, NORM_EPSILON, x))
+        crate::fastconv::channel_norm_relu(&self.norm, NORM_EPSILON, x)
     }
 }
 

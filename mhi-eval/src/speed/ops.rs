@@ -205,7 +205,7 @@ mod tests {
     #[test]
     fn the_op_table_parses_with_known_kinds() {
         let ops = default_ops();
-        assert_eq!(ops.len(), 21);
+        assert_eq!(ops.len(), 31);
         let known = [
             "conv3d",
             "conv3d_as_2d",

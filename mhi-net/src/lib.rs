@@ -44,6 +44,7 @@
 
 pub mod backbone;
 mod config;
+mod heads;
 pub use mhi_kernels as fastconv;
 pub mod loss;
 mod model;

@@ -821,6 +821,28 @@ impl Trainer {
 /// # Shapes
 /// `volume [N, C, D, H, W]` → `([N·D, 1, H, W], Some([N·D, 3, H, W]) or None)`
 pub(crate) fn alphas_of(stage1: &Stage1, input: Stage1Input) -> Layers {
+    let on_cpu = mhi_kernels::on_cpu_backend(&input.volume.device());
+    let Some(prior) = input.prior.as_ref().filter(|_| on_cpu) else {
+        return alphas_of_tensors(stage1, input);
+    };
+    // The CPU backend with the sweep prior: the upsampling and each head in one pass forward
+    // and one backward (`heads`), the same values as the tensor operations below.
+    let [n, _, d, hs, ws] = input.volume.dims();
+    let small = stage1.forward_full(input.volume);
+    let part = |k: usize| small.clone().narrow(1, k, 1).reshape([n * d, hs, ws]);
+    let alpha = crate::heads::upsampled(part(0), std::sync::Arc::new(prior.head()));
+    let colour = match (&input.colour, small.dims()[1]) {
+        (Some(sc), 2) => Some(crate::heads::upsampled(
+            part(1),
+            std::sync::Arc::new(sc.head()),
+        )),
+        _ => None,
+    };
+    Layers { alpha, colour }
+}
+
+/// [`alphas_of`] as burn tensor operations (any device; without the prior on the CPU too).
+pub(crate) fn alphas_of_tensors(stage1: &Stage1, input: Stage1Input) -> Layers {
     let [n, _, d, _, _] = input.volume.dims();
     let (h, w) = input.size;
     let out = stage1.forward_blocks(input.volume, input.size);

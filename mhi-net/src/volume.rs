@@ -69,6 +69,12 @@ impl SweepPrior {
         (sigmoid(t(&self.logit) + residual) + t(&self.correction)).clamp(0.0, 1.0)
     }
 
+    /// The prior as the training path's fused upsample-and-apply takes it
+    /// ([`crate::heads::upsampled`]).
+    pub(crate) fn head(&self) -> crate::heads::Head {
+        crate::heads::Head::prior(self.logit.clone(), self.correction.clone(), self.shape)
+    }
+
     /// What [`Self::apply`] gives for the residual `small` (`N·D` planes of `hs × ws`) brought
     /// to the full grid by burn's bilinear `interpolate` (corners aligned, as
     /// [`crate::Stage1::forward_blocks`] does), in one pass over the alphas instead of five
@@ -343,6 +349,13 @@ impl SourceColour {
         Tensor::from_data(TensorData::new(abs, [planes, 3, h, w]), device)
     }
 
+    /// The colours as the training path's fused upsample-and-apply takes them
+    /// ([`crate::heads::upsampled`]).
+    pub(crate) fn head(&self) -> crate::heads::Head {
+        let (reference, delta) = self.planar();
+        crate::heads::Head::colour(reference, delta, self.shape)
+    }
+
     /// Every plane's colour for the head's logits `m` (differentiable in `m`).
     ///
     /// # Shapes
@@ -410,7 +423,7 @@ impl SourceColour {
 
 /// Per output coordinate, the two taps and the weight of the second, as burn's
 /// `interpolate_bilinear_impl` computes them (corners aligned; in f64, the weight then in f32).
-fn bilinear_axis(n_in: usize, n_out: usize) -> Vec<(usize, usize, f32)> {
+pub(crate) fn bilinear_axis(n_in: usize, n_out: usize) -> Vec<(usize, usize, f32)> {
     let ratio = (n_in as f64 - 1.0) / (n_out.max(1) - 1).max(1) as f64;
     (0..n_out)
         .map(|o| {
@@ -453,7 +466,7 @@ fn upsample_rows(
 /// One output row of a bilinear upsampling of the plane `src` (rows of `ws` values): the taps
 /// and weight of the row `(y0, y1, wy)` and of every column, as [`bilinear_axis`] gives them.
 #[inline]
-fn upsample_row(
+pub(crate) fn upsample_row(
     src: &[f32],
     ws: usize,
     (y0, y1, wy): (usize, usize, f32),

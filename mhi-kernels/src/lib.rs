@@ -89,6 +89,19 @@ pub trait FastOps: Backend {
         Self::conv3d(x, weight, None, options)
     }
 
+    /// `conv3d(x, weight) + bias`, the bias added as the output is written.
+    fn fast_conv3d_biased(
+        x: FloatTensor<Self>,
+        weight: FloatTensor<Self>,
+        bias: FloatTensor<Self>,
+        options: ConvOptions<3>,
+    ) -> FloatTensor<Self> {
+        Self::conv3d(x, weight, Some(bias), options)
+    }
+
+    /// The sum of `grad` (`[B, C, …]`) per channel: a bias's gradient, `[C]`.
+    fn channel_sums(grad: FloatTensor<Self>) -> FloatTensor<Self>;
+
     /// The gradient with respect to `x`.
     fn fast_conv3d_x_backward(
         x: FloatTensor<Self>,
@@ -223,19 +236,22 @@ pub fn conv3d(
     if !on_flex(&x) || empty {
         return burn::tensor::module::conv3d(x, weight, bias, options);
     }
-    let out = <burn::backend::Dispatch as FastOps>::fast_conv3d(
-        x.into_dispatch(),
-        weight.into_dispatch(),
-        options,
-    );
-    let out = Tensor::<5>::from_dispatch(out);
-    match bias {
-        Some(b) => {
-            let c = b.dims()[0];
-            out + b.reshape([1, c, 1, 1, 1])
-        }
-        None => out,
-    }
+    // The bias is added as the kernels write the output (one pass less forward; its gradient
+    // one parallel sum per channel).
+    let out = match bias {
+        Some(b) => <burn::backend::Dispatch as FastOps>::fast_conv3d_biased(
+            x.into_dispatch(),
+            weight.into_dispatch(),
+            b.into_dispatch(),
+            options,
+        ),
+        None => <burn::backend::Dispatch as FastOps>::fast_conv3d(
+            x.into_dispatch(),
+            weight.into_dispatch(),
+            options,
+        ),
+    };
+    Tensor::<5>::from_dispatch(out)
 }
 
 /// Whether `x` lives on the CPU backend (plain or autodiff), where [`FastOps`] runs its kernels.
@@ -349,16 +365,18 @@ pub fn conv_transpose3d(
         .reshape([cin, cout * kk])
         .transpose()
         .reshape([cout * kk, cin, 1, 1, 1]);
-    let y = conv3d(x, w1, None, ConvOptions::new([1; 3], [0; 3], [1; 3], 1));
+    // The bias of output channel co goes with each of its kk interleaved channels, added as the
+    // 1 × 1 × 1 convolution writes them (the same sums as adding it after the interleaving).
+    let b1 = bias.map(|bias| {
+        bias.reshape([cout, 1])
+            .expand([cout, kk])
+            .reshape([cout * kk])
+    });
+    let y = conv3d(x, w1, b1, ConvOptions::new([1; 3], [0; 3], [1; 3], 1));
     // [b, cout, kd, kh, kw, d, h, w] → [b, cout, d, kd, h, kh, w, kw]
-    let y = y
-        .reshape([b, cout, kd, kh, kw, d, h, w])
+    y.reshape([b, cout, kd, kh, kw, d, h, w])
         .permute([0, 1, 5, 2, 6, 3, 7, 4])
-        .reshape([b, cout, d * kd, h * kh, w * kw]);
-    match bias {
-        Some(bias) => y + bias.reshape([1, cout, 1, 1, 1]),
-        None => y,
-    }
+        .reshape([b, cout, d * kd, h * kh, w * kw])
 }
 
 /// `conv.forward(x)` of a `burn::nn::conv::ConvTranspose3d` module, through
@@ -478,6 +496,48 @@ fn flex(values: Vec<f32>, shape: Vec<usize>) -> FlexTensor {
 }
 
 impl FastOps for Flex {
+    fn fast_conv3d_biased(
+        x: FlexTensor,
+        weight: FlexTensor,
+        bias: FlexTensor,
+        options: ConvOptions<3>,
+    ) -> FlexTensor {
+        let Some(s) = shape_of(&x, &weight, &options) else {
+            return Flex::conv3d(x, weight, Some(bias), options);
+        };
+        let (x, weight, bias) = (x.to_contiguous(), weight.to_contiguous(), f32s(bias));
+        let out = kernel::forward(
+            &s,
+            x.storage::<f32>(),
+            weight.storage::<f32>(),
+            Some(bias.storage::<f32>()),
+        );
+        let [d, h, w] = s.output();
+        flex(out, vec![s.batch, s.cout, d, h, w])
+    }
+
+    fn channel_sums(grad: FlexTensor) -> FlexTensor {
+        use rayon::prelude::*;
+        let shape = grad.shape().to_vec();
+        let c = shape.get(1).copied().unwrap_or(1);
+        let rest: usize = shape.iter().skip(2).product();
+        let batch = shape.first().copied().unwrap_or(1);
+        let g = f32s(grad);
+        let g = g.storage::<f32>();
+        let sums: Vec<f32> = (0..c)
+            .into_par_iter()
+            .map(|ch| {
+                let mut total = 0.0f64;
+                for b in 0..batch {
+                    let row = &g[(b * c + ch) * rest..][..rest];
+                    total += row.iter().map(|&v| f64::from(v)).sum::<f64>();
+                }
+                total as f32
+            })
+            .collect();
+        flex(sums, vec![c])
+    }
+
     fn fast_conv3d(x: FlexTensor, weight: FlexTensor, options: ConvOptions<3>) -> FlexTensor {
         let Some(s) = shape_of(&x, &weight, &options) else {
             return Flex::conv3d(x, weight, None, options);
@@ -675,6 +735,44 @@ impl<B: Backend + FastOps, C: CheckpointStrategy> FastOps for Autodiff<B, C> {
         }
     }
 
+    fn fast_conv3d_biased(
+        x: FloatTensor<Self>,
+        weight: FloatTensor<Self>,
+        bias: FloatTensor<Self>,
+        options: ConvOptions<3>,
+    ) -> FloatTensor<Self> {
+        match ConvBiased
+            .prepare::<C>([x.node(), weight.node(), bias.node()])
+            .compute_bound()
+            .stateful()
+        {
+            OpsKind::Tracked(mut prep) => {
+                let x_state = prep.checkpoint(&x);
+                let weight_state = prep.checkpoint(&weight);
+                prep.finish(
+                    (x_state, weight_state, options.clone()),
+                    B::fast_conv3d_biased(
+                        x.into_primitive(),
+                        weight.into_primitive(),
+                        bias.into_primitive(),
+                        options,
+                    ),
+                )
+            }
+            OpsKind::UnTracked(prep) => prep.finish(B::fast_conv3d_biased(
+                x.into_primitive(),
+                weight.into_primitive(),
+                bias.into_primitive(),
+                options,
+            )),
+        }
+    }
+
+    fn channel_sums(grad: FloatTensor<Self>) -> FloatTensor<Self> {
+        // A gradient, by the inner backend and not tracked.
+        <FloatTensor<Self>>::new(B::channel_sums(grad.into_primitive()))
+    }
+
     fn channel_norm(
         x: FloatTensor<Self>,
         gamma: FloatTensor<Self>,
@@ -854,6 +952,39 @@ impl<B: Backend + FastOps> Backward<B, 1> for MaxPool {
                 node.id,
                 B::fast_max_pool2d_backward(argmax, grad, shape, k, s),
             );
+        }
+    }
+}
+
+/// The autodiff node of [`FastOps::fast_conv3d_biased`].
+#[derive(Debug)]
+struct ConvBiased;
+
+impl<B: Backend + FastOps> Backward<B, 3> for ConvBiased {
+    type State = (NodeId, NodeId, ConvOptions<3>);
+
+    fn backward(
+        self,
+        ops: Ops<Self::State, 3>,
+        grads: &mut Gradients,
+        checkpointer: &mut Checkpointer,
+    ) {
+        let [node_x, node_weight, node_bias] = ops.parents;
+        let grad = grads.consume::<B>(&ops.node);
+        let (x_state, weight_state, options) = ops.state;
+        let x = checkpointer.retrieve_node_output::<B::FloatTensorPrimitive>(x_state);
+        let weight = checkpointer.retrieve_node_output::<B::FloatTensorPrimitive>(weight_state);
+        if let Some(node) = node_bias {
+            grads.register::<B>(node.id, B::channel_sums(grad.clone()));
+        }
+        if let Some(node) = node_x {
+            let g =
+                B::fast_conv3d_x_backward(x.clone(), weight.clone(), grad.clone(), options.clone());
+            grads.register::<B>(node.id, g);
+        }
+        if let Some(node) = node_weight {
+            let g = B::fast_conv3d_weight_backward(x, weight, grad, options);
+            grads.register::<B>(node.id, g);
         }
     }
 }

@@ -6,6 +6,7 @@
 use burn::tensor::ops::GridSampleOptions;
 use burn::tensor::{Device, Tensor, TensorData};
 use mhi_geom::{BlendHeuristic, Camera, NormalSet};
+use rayon::prelude::*;
 
 use crate::cpu::{W_EPS, row_major_f32};
 use crate::error::{Error, Result};
@@ -58,36 +59,41 @@ impl WarpGeometry {
         let (rw, rh) = (f64::from(reference.width), f64::from(reference.height));
         let mut grid = vec![-2.0_f32; n * d * h * w * 2];
         let mut valid = vec![0.0_f32; n * d * h * w];
-        for (l, plane) in planes.iter().enumerate() {
-            let Ok(hm) = mhi_geom::plane_homography(
-                &reference.intrinsics,
-                &target.intrinsics,
-                &ref_from_tgt,
-                plane,
-            ) else {
-                continue;
-            };
-            // Same f32 arithmetic as the CPU renderer, so both sample the same positions.
-            let hf = row_major_f32(&hm);
-            for y in 0..h {
-                let v = y as f32 + 0.5;
-                for x in 0..w {
-                    let u = x as f32 + 0.5;
-                    let wh = hf[6] * u + hf[7] * v + hf[8];
-                    if !(wh > W_EPS) {
-                        continue;
+        // One layer per task (each writes only its own grid and mask).
+        grid.par_chunks_mut((2 * h * w).max(1))
+            .zip(valid.par_chunks_mut((h * w).max(1)))
+            .zip(planes.par_iter())
+            .for_each(|((grid, valid), plane)| {
+                let Ok(hm) = mhi_geom::plane_homography(
+                    &reference.intrinsics,
+                    &target.intrinsics,
+                    &ref_from_tgt,
+                    plane,
+                ) else {
+                    return;
+                };
+                // Same f32 arithmetic as the CPU renderer, so both sample the same positions.
+                let hf = row_major_f32(&hm);
+                for y in 0..h {
+                    let v = y as f32 + 0.5;
+                    for x in 0..w {
+                        let u = x as f32 + 0.5;
+                        let wh = hf[6] * u + hf[7] * v + hf[8];
+                        if !(wh > W_EPS) {
+                            continue;
+                        }
+                        let sx = (hf[0] * u + hf[1] * v + hf[2]) / wh;
+                        let sy = (hf[3] * u + hf[4] * v + hf[5]) / wh;
+                        let k = y * w + x;
+                        // Continuous pixel position → [-1, 1]; anything beyond ±2 is fully
+                        // outside the image, so clamping there changes no sample.
+                        grid[2 * k] = ((f64::from(sx) / rw * 2.0 - 1.0).clamp(-2.0, 2.0)) as f32;
+                        grid[2 * k + 1] =
+                            ((f64::from(sy) / rh * 2.0 - 1.0).clamp(-2.0, 2.0)) as f32;
+                        valid[k] = 1.0;
                     }
-                    let sx = (hf[0] * u + hf[1] * v + hf[2]) / wh;
-                    let sy = (hf[3] * u + hf[4] * v + hf[5]) / wh;
-                    let k = (l * h + y) * w + x;
-                    // Continuous pixel position → [-1, 1]; anything beyond ±2 is fully outside
-                    // the image, so clamping there changes no sample.
-                    grid[2 * k] = ((f64::from(sx) / rw * 2.0 - 1.0).clamp(-2.0, 2.0)) as f32;
-                    grid[2 * k + 1] = ((f64::from(sy) / rh * 2.0 - 1.0).clamp(-2.0, 2.0)) as f32;
-                    valid[k] = 1.0;
                 }
-            }
-        }
+            });
         let far: Vec<f32> = (0..n * d)
             .map(|l| if l % d == 0 { 1.0 } else { 0.0 })
             .collect();
@@ -207,9 +213,14 @@ pub fn render_shared(
     let l = geom.n * geom.d;
     let [_, _, rh, rw] = color.dims();
     let color = color.expand([l, 3, rh, rw]);
-    let warped = warp(Tensor::cat(vec![color, alpha], 1), geom);
-    let rgb = warped.clone().narrow(1, 0, 3);
-    let a = warped.narrow(1, 3, 1);
+    let (rgb, a) = if geom.taps.is_some() && gather::on_cpu_backend(&alpha.device()) {
+        // The gather warps each channel row on its own: colour and alpha apart give the same
+        // values without the concatenation, its slices and their copies (forward and back).
+        (warp(color, geom), warp(alpha, geom))
+    } else {
+        let warped = warp(Tensor::cat(vec![color, alpha], 1), geom);
+        (warped.clone().narrow(1, 0, 3), warped.narrow(1, 3, 1))
+    };
     let mni = composite(rgb, a, geom);
     (blend(mni.clone(), weights), mni)
 }

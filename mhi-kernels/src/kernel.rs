@@ -378,12 +378,33 @@ impl Padded {
         // parallel, rather than one serial memset of the whole buffer first), then each padded
         // depth slice's rows scattered to the phases.
         let spare = &mut data.spare_capacity_mut()[..len];
+        // Unit tests start from NaN everywhere, so that a position the writes below miss shows.
+        #[cfg(test)]
+        spare.fill(std::mem::MaybeUninit::new(f32::NAN));
         let (body, slack) = spare.split_at_mut(s.batch * item);
         slack.fill(std::mem::MaybeUninit::new(0.0));
         body.par_chunks_exact_mut(chan)
             .zip(x.par_chunks_exact(d * h * w))
             .for_each(|(dst, src)| {
-                dst.fill(std::mem::MaybeUninit::new(0.0));
+                let zero = std::mem::MaybeUninit::new(0.0);
+                if sy == 1 && sx == 1 {
+                    // One phase: only the padding around each slice's rows (and the slice's
+                    // rounding) is zeroed; the rows' values are written below.
+                    let (ph, pw) = (s.padding[1], s.padding[2]);
+                    for z in 0..d {
+                        let at = z * slice;
+                        dst[at..at + ph * wq].fill(zero);
+                        for y in 0..h {
+                            let row = at + (ph + y) * wq;
+                            dst[row..row + pw].fill(zero);
+                            dst[row + pw + w..row + wq].fill(zero);
+                        }
+                        dst[at + (ph + h) * wq..at + slice].fill(zero);
+                    }
+                    // (`chan` is `d · slice` here: nothing follows the last slice.)
+                } else {
+                    dst.fill(zero);
+                }
                 for (z, plane) in src.chunks_exact(h * w).enumerate() {
                     for (y, row) in plane.chunks_exact(w).enumerate() {
                         let yp = y + s.padding[1];
@@ -1558,5 +1579,60 @@ pub mod blocked {
         // SAFETY: a plain transmute of a vector into 16 floats (same size, any bits).
         let vals = acc.map(|a| a.map(|r| unsafe { std::mem::transmute::<__m512, [f32; 16]>(r) }));
         write_tile(&vals, (wide, at, q));
+    }
+}
+
+#[cfg(test)]
+mod padded_tests {
+    use super::{ConvShape, Padded};
+
+    /// The padded input holds each value at its place and zeros everywhere else (built from a
+    /// buffer of NaN under test, so a position left unwritten reads as one).
+    #[test]
+    fn the_padded_input_is_the_input_among_zeros() {
+        for (input, stride, pad) in [([3, 5, 7], 1, 1), ([2, 6, 9], 1, 4), ([2, 8, 6], 2, 1)] {
+            let s = ConvShape {
+                batch: 2,
+                cin: 3,
+                cout: 8,
+                input,
+                kernel: [3, 3, 3],
+                stride: [1, stride, stride],
+                dilation: [1, pad, pad],
+                padding: [1, pad, pad],
+            };
+            let n = s.batch * s.cin * input.iter().product::<usize>();
+            let x: Vec<f32> = (0..n).map(|i| 1.0 + i as f32).collect();
+            let p = Padded::new(&s, &x);
+            assert!(
+                p.data.iter().all(|v| v.is_finite()),
+                "{input:?}: an unwritten value"
+            );
+            let [d, h, w] = input;
+            let [sy, sx] = p.phases;
+            let mut seen = 0;
+            for b in 0..s.batch {
+                for c in 0..s.cin {
+                    for z in 0..d {
+                        for y in 0..h {
+                            for xx in 0..w {
+                                let (yp, xp) = (y + pad, xx + pad);
+                                let at = b * p.item
+                                    + c * p.chan
+                                    + ((yp % sy) * sx + xp % sx) * p.phase
+                                    + z * p.slice
+                                    + (yp / sy) * p.wq
+                                    + xp / sx;
+                                let want = x[(((b * s.cin + c) * d + z) * h + y) * w + xx];
+                                assert_eq!(p.data[at], want, "{input:?} {b} {c} {z} {y} {xx}");
+                                seen += 1;
+                            }
+                        }
+                    }
+                }
+            }
+            let nonzero = p.data.iter().filter(|v| **v != 0.0).count();
+            assert_eq!(nonzero, seen, "{input:?}: a padding value is not zero");
+        }
     }
 }

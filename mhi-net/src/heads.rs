@@ -6,10 +6,10 @@
 //! (`clamp(σ(logit + r) + correction, 0, 1)`) and the colour head the logit into colours
 //! (`clamp(ref + tanh(m) · (src − ref), 0, 1)`). As tensor operations that is an interpolation
 //! and five to seven full-size element-wise passes forward, as many backward, each recorded by
-//! autodiff (35–40 ms forward on the shipped model's step). [`upsampled_alpha`] and
-//! [`upsampled_colour`] do each in one pass forward and one backward (the gradient with respect
-//! to the small grid, through the interpolation's adjoint), with the inference path's sums:
-//! [`SweepPrior::apply_upsampled`] and [`SourceColour::apply_upsampled`] give the same values.
+//! autodiff (35–40 ms forward on the shipped model's step). [`upsampled`] does each head in one
+//! pass forward and one backward (the gradient with respect to the small grid, through the
+//! interpolation's adjoint), with the inference path's arithmetic: `SweepPrior::apply_upsampled`
+//! and `SourceColour::apply_upsampled` give the same values.
 
 use std::sync::Arc;
 

@@ -942,15 +942,21 @@ fn transposed_as_conv(s: &ConvShape, w: &[f32]) -> Option<(ConvShape, Vec<f32>)>
 
 /// The gradient of the bias: the output gradient summed over batch and positions.
 pub fn grad_bias(s: &ConvShape, gy: &[f32]) -> Vec<f32> {
-    let sp = s.out_len();
-    let mut gb = vec![0.0f32; s.cout];
-    if sp == 0 {
-        return gb;
-    }
-    for (i, row) in gy.chunks_exact(sp).enumerate() {
-        gb[i % s.cout] += row.iter().map(|&v| f64::from(v)).sum::<f64>() as f32;
-    }
-    gb
+    channel_sums(gy, s.batch, s.cout)
+}
+
+/// The values of a `[batch, channels, …]` tensor `g` summed per channel (in f64, a channel per
+/// task).
+pub fn channel_sums(g: &[f32], batch: usize, channels: usize) -> Vec<f32> {
+    let rest = g.len() / (batch * channels).max(1);
+    (0..channels)
+        .into_par_iter()
+        .map(|ch| {
+            let rows = (0..batch).map(|b| &g[(b * channels + ch) * rest..][..rest]);
+            rows.map(|row| row.iter().map(|&v| f64::from(v)).sum::<f64>())
+                .sum::<f64>() as f32
+        })
+        .collect()
 }
 
 /// The direct forward as a register-blocked AVX2 + FMA kernel, for output channels in whole

@@ -517,25 +517,10 @@ impl FastOps for Flex {
     }
 
     fn channel_sums(grad: FlexTensor) -> FlexTensor {
-        use rayon::prelude::*;
         let shape = grad.shape().to_vec();
-        let c = shape.get(1).copied().unwrap_or(1);
-        let rest: usize = shape.iter().skip(2).product();
-        let batch = shape.first().copied().unwrap_or(1);
+        let (batch, c) = (shape[0], shape.get(1).copied().unwrap_or(1));
         let g = f32s(grad);
-        let g = g.storage::<f32>();
-        let sums: Vec<f32> = (0..c)
-            .into_par_iter()
-            .map(|ch| {
-                let mut total = 0.0f64;
-                for b in 0..batch {
-                    let row = &g[(b * c + ch) * rest..][..rest];
-                    total += row.iter().map(|&v| f64::from(v)).sum::<f64>();
-                }
-                total as f32
-            })
-            .collect();
-        flex(sums, vec![c])
+        flex(kernel::channel_sums(g.storage(), batch, c), vec![c])
     }
 
     fn fast_conv3d(x: FlexTensor, weight: FlexTensor, options: ConvOptions<3>) -> FlexTensor {
@@ -694,23 +679,13 @@ impl<B: Backend + FastOps, C: CheckpointStrategy> FastOps for Autodiff<B, C> {
             ) {
                 let [node_x, node_weight] = ops.parents;
                 let grad = grads.consume::<B>(&ops.node);
-                let (x_state, weight_state, options) = ops.state;
-                let x = checkpointer.retrieve_node_output::<B::FloatTensorPrimitive>(x_state);
-                let weight =
-                    checkpointer.retrieve_node_output::<B::FloatTensorPrimitive>(weight_state);
-                if let Some(node) = node_x {
-                    let g = B::fast_conv3d_x_backward(
-                        x.clone(),
-                        weight.clone(),
-                        grad.clone(),
-                        options.clone(),
-                    );
-                    grads.register::<B>(node.id, g);
-                }
-                if let Some(node) = node_weight {
-                    let g = B::fast_conv3d_weight_backward(x, weight, grad, options);
-                    grads.register::<B>(node.id, g);
-                }
+                conv_input_grads::<B>(
+                    [node_x, node_weight].map(|n| n.map(|n| n.id)),
+                    ops.state,
+                    grad,
+                    grads,
+                    checkpointer,
+                );
             }
         }
 
@@ -971,21 +946,37 @@ impl<B: Backend + FastOps> Backward<B, 3> for ConvBiased {
     ) {
         let [node_x, node_weight, node_bias] = ops.parents;
         let grad = grads.consume::<B>(&ops.node);
-        let (x_state, weight_state, options) = ops.state;
-        let x = checkpointer.retrieve_node_output::<B::FloatTensorPrimitive>(x_state);
-        let weight = checkpointer.retrieve_node_output::<B::FloatTensorPrimitive>(weight_state);
         if let Some(node) = node_bias {
             grads.register::<B>(node.id, B::channel_sums(grad.clone()));
         }
-        if let Some(node) = node_x {
-            let g =
-                B::fast_conv3d_x_backward(x.clone(), weight.clone(), grad.clone(), options.clone());
-            grads.register::<B>(node.id, g);
-        }
-        if let Some(node) = node_weight {
-            let g = B::fast_conv3d_weight_backward(x, weight, grad, options);
-            grads.register::<B>(node.id, g);
-        }
+        conv_input_grads::<B>(
+            [node_x, node_weight].map(|n| n.map(|n| n.id)),
+            ops.state,
+            grad,
+            grads,
+            checkpointer,
+        );
+    }
+}
+
+/// A convolution node's gradients with respect to its input and its weight (the parents that
+/// need them), from the checkpointed input and weight and the output's gradient.
+fn conv_input_grads<B: Backend + FastOps>(
+    [node_x, node_weight]: [Option<NodeId>; 2],
+    (x_state, weight_state, options): (NodeId, NodeId, ConvOptions<3>),
+    grad: B::FloatTensorPrimitive,
+    grads: &mut Gradients,
+    checkpointer: &mut Checkpointer,
+) {
+    let x = checkpointer.retrieve_node_output::<B::FloatTensorPrimitive>(x_state);
+    let weight = checkpointer.retrieve_node_output::<B::FloatTensorPrimitive>(weight_state);
+    if let Some(node) = node_x {
+        let g = B::fast_conv3d_x_backward(x.clone(), weight.clone(), grad.clone(), options.clone());
+        grads.register::<B>(node, g);
+    }
+    if let Some(node) = node_weight {
+        let g = B::fast_conv3d_weight_backward(x, weight, grad, options);
+        grads.register::<B>(node, g);
     }
 }
 
